@@ -1,0 +1,46 @@
+# somersault — the two commands of a fresh clone: `make demo` and `make test`.
+SHELL := /bin/bash
+PY_BOOT ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+PKGS := ros_ws/src/cassie_flip_sim ros_ws/src/fslip_planner ros_ws/src/tsc_controller
+MSGS := ros_ws/src/flip_msgs
+MSG_SRCS := $(wildcard $(MSGS)/msg/*.msg $(MSGS)/srv/*.srv) $(MSGS)/CMakeLists.txt $(MSGS)/package.xml $(MSGS)/pyproject.toml
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export MUJOCO_GL ?= egl
+
+.PHONY: setup demo test clean-venv
+setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-pkgs
+
+# Debian packages: a C++ toolchain for flip_msgs and GL libraries for offscreen rendering.
+$(VENV)/.stamp-system: scripts/install_system_deps.sh
+	bash scripts/install_system_deps.sh
+	@mkdir -p $(VENV) && touch $@
+
+$(VENV)/.stamp-deps: requirements.txt
+	test -x $(PY) || $(PY_BOOT) -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -r requirements.txt
+	touch $@
+
+# flip_msgs: rosidl generation against the ROS wheels, installed straight into the venv.
+$(VENV)/.stamp-msgs: $(VENV)/.stamp-deps $(MSG_SRCS)
+	AMENT_PREFIX_PATH=$(CURDIR)/$(VENV) CMAKE_PREFIX_PATH=$(CURDIR)/$(VENV) PATH=$(CURDIR)/$(VENV)/bin:$$PATH \
+	$(PIP) install -q --no-build-isolation $(MSGS) \
+	  -C cmake.define.FLIP_MSGS_PYTHON_INCLUDE_DIRS="$$($(PY) -c 'import sysconfig,numpy;print(sysconfig.get_paths()["include"]+";"+numpy.get_include())')" \
+	  -C cmake.define.Python3_EXECUTABLE=$(CURDIR)/$(PY)
+	touch $@
+
+$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg)
+	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
+	touch $@
+
+demo: setup
+	$(PY) scripts/flip run backflip --out runs/demo
+
+test: setup
+	$(PY) -m pytest tests -q
+
+clean-venv:
+	rm -rf $(VENV)

@@ -1,0 +1,1 @@
+"""cassie_flip_sim."""

@@ -1,0 +1,1 @@
+"""fslip_planner."""

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Debian packages the project needs: a C/C++ toolchain (flip_msgs generation) and GL libraries
+# for offscreen rendering (MuJoCo with MUJOCO_GL=egl or osmesa). Installs only what is missing.
+set -euo pipefail
+need=()
+for pkg in g++ make libegl1 libgl1 libosmesa6; do
+  dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
+done
+[ ${#need[@]} -eq 0 ] && exit 0
+echo "installing Debian packages: ${need[*]}"
+SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${need[@]}"
