@@ -1,0 +1,54 @@
+"""Motor limits as on the robot: joint-side torque saturation and a linear torque–speed envelope
+(the paper's u_lb(q̇) ≤ u ≤ u_ub(q̇), eq. (power) / the Torque Limit row of the TSC QP).
+
+Envelope per motor, joint side (τ_max = motor limit · gear, ω₀ = no-load rpm · 2π/60 / gear):
+motoring (τ·ω > 0) the available torque drops linearly from τ_max at ω = 0 to 0 at |ω| = ω₀;
+braking (τ·ω ≤ 0) the full τ_max is available.  The flywheel has a constant 195 N·m limit
+(paper §V) and, optionally, a maximum speed (no-load speed = that speed).
+Order = contract motor order (architecture.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Tuple
+
+import numpy as np
+
+from . import robot_params as P
+
+
+@dataclass(frozen=True)
+class MotorLimits:
+    names: Tuple[str, ...]
+    torque_limit: np.ndarray     # joint side, N·m
+    no_load_speed: np.ndarray    # joint side, rad/s (inf = no speed dependence)
+
+    @staticmethod
+    def from_flywheel(flywheel: P.Flywheel | str | tuple | None = "I") -> "MotorLimits":
+        fw = P.flywheel(flywheel)
+        motors = list(P.CASSIE_MOTORS) + ([P.flywheel_motor(fw)] if fw is not None else [])
+        return MotorLimits(tuple(m.joint for m in motors),
+                           np.array([m.torque_limit for m in motors], float),
+                           np.array([m.no_load_speed for m in motors], float))
+
+    def bounds(self, motor_velocities) -> Tuple[np.ndarray, np.ndarray]:
+        """(lb, ub) of the joint-side torques at the given joint-side motor velocities (rad/s)."""
+        w = np.asarray(motor_velocities, float)
+        inv_w0 = 1.0 / self.no_load_speed          # 0 where the no-load speed is inf
+        avail = self.torque_limit * np.clip(1.0 - np.abs(w) * inv_w0, 0.0, 1.0)
+        ub = np.where(w > 0, avail, self.torque_limit)
+        lb = np.where(w < 0, -avail, -self.torque_limit)
+        return lb, ub
+
+    def clip(self, u, motor_velocities) -> np.ndarray:
+        """Commanded torques saturated to the envelope."""
+        lb, ub = self.bounds(motor_velocities)
+        return np.minimum(np.maximum(np.asarray(u, float), lb), ub)
+
+
+DEFAULT_LIMITS = MotorLimits.from_flywheel("I")
+
+
+def torque_bounds(motor_velocities, limits: MotorLimits = DEFAULT_LIMITS) -> Tuple[np.ndarray, np.ndarray]:
+    """(lb, ub) = (u_lb(q̇), u_ub(q̇)) for the 11 motors in contract order."""
+    return limits.bounds(motor_velocities)

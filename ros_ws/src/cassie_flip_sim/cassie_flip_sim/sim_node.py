@@ -1,0 +1,300 @@
+"""sim_node: the MuJoCo simulator as a ROS 2 node (thin adapter around ``simulator.Simulator``).
+
+Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
+  1. at a contact event, publish ``/contact_events``; while a flip plan is in force, hold until the
+     planner's reference for the domain entered is on the graph (the paper's simulation does the
+     same), so a run does not depend on the planner's wall time;
+  2. publish ``/clock``, ``/joint_states``, ``/odom`` stamped k·dt;
+  3. wait for the ``/motor_command`` with ``step == k`` (older ones are dropped; on a timeout the
+     state is sent again and the silence is reported), apply it, step.
+Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
+counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
+(zero torques, no waiting).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+
+from .lockstep import (LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp,
+                       stamp_to_ns)
+from .contacts import Event
+from .model import Scenario, export_mjcf
+from .simulator import Simulator
+
+#: longest wall time the simulator holds at a contact event for the planner's reference
+PLANNER_HOLD_TIMEOUT_S = 30.0
+#: wall time without a command before the state is sent again and the silence is reported
+COMMAND_RESEND_S = 0.05
+
+
+def make_scenario(name, platform_height, ground_offset):
+    """Terrain from the node's parameters: flat, a start platform (flip C) or a landing area
+    higher than the planner is told (flip D)."""
+    if name == 'flat':
+        return Scenario.flat()
+    if name == 'platform':
+        return Scenario.platform(platform_height)
+    if name in ('raised', 'raised_landing'):
+        return Scenario.raised_landing(ground_offset)
+    raise ValueError(f"scenario must be 'flat', 'platform' or 'raised', not {name!r}")
+
+
+def domain_entered(event):
+    """LIFT_OFF enters FLIGHT, TOUCH_DOWN enters LANDING (flip_msgs/ContactEvent domains)."""
+    return ContactEvent.DOMAIN_FLIGHT if event.kind == Event.LIFT_OFF else ContactEvent.DOMAIN_LANDING
+
+
+def _declare(node, name, default):
+    return node.declare_parameter(name, default).value
+
+
+class SimNode:
+    def __init__(self):
+        self.node = rclpy.create_node('sim_node')
+        n = self.node
+        self.mode = _declare(n, 'mode', 'lockstep')
+        self.controller = _declare(n, 'controller', 'tsc')
+        self.duration = float(_declare(n, 'duration', 0.0))
+        flywheel = _declare(n, 'flywheel', 'I')
+        inertia = float(_declare(n, 'flywheel_inertia', 0.0))
+        mass = float(_declare(n, 'flywheel_mass', 0.0))
+        scenario = make_scenario(_declare(n, 'scenario', 'flat'),
+                                 float(_declare(n, 'platform_height', 0.5)),
+                                 float(_declare(n, 'ground_offset', 0.1)))
+        self.video_path = _declare(n, 'video_path', '')
+        if self.mode not in ('lockstep', 'realtime'):
+            raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
+        if self.controller not in ('tsc', 'none'):
+            raise ValueError(f"controller must be 'tsc' or 'none', not {self.controller!r}")
+        fw = (inertia, mass) if inertia > 0 and mass > 0 else flywheel
+        self.sim = Simulator(flywheel=fw, scenario=scenario)
+        self.scenario = scenario
+        self.dt = self.sim.timestep
+        self.dt_ns = int(round(self.dt * 1e9))
+
+        self.pub_clock = n.create_publisher(Clock, '/clock', STREAM_QOS)
+        self.pub_js = n.create_publisher(JointState, '/joint_states', STREAM_QOS)
+        self.pub_odom = n.create_publisher(Odometry, '/odom', STREAM_QOS)
+        self.pub_events = n.create_publisher(ContactEvent, '/contact_events', LATCHED_QOS)
+        self.pub_desc = n.create_publisher(String, '/robot_description', LATCHED_QOS)
+        self.subs = SubscriptionSet(n, [(MotorCommand, '/motor_command', STREAM_QOS),
+                                        (FlipReference, '/fslip/reference', LATCHED_QOS)])
+        # Services are served by a second node spun by an executor between steps.
+        self.srv_node = rclpy.create_node('sim_node_services')
+        self.srv_node.create_service(Trigger, '/sim/reset', self._on_reset)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.srv_node)
+
+        self._prealloc_messages()
+        self.pub_desc.publish(String(data=export_mjcf(fw)))
+        self.command = np.zeros(11)
+        self.plan_in_force = None      # (plan_id, domain) of the newest reference seen
+        self.hold_times = []
+        self.resends = 0
+        self.reset_requested = False
+
+    # -- messages ----------------------------------------------------------------------------
+    def _prealloc_messages(self):
+        self.msg_clock = Clock()
+        self.msg_js = JointState()
+        self.msg_js.name = list(self.sim.joint_names)
+        self.msg_odom = Odometry()
+        self.msg_odom.header.frame_id = 'world'
+        self.msg_odom.child_frame_id = 'pelvis'
+
+    def _publish_state(self, k):
+        ns = k * self.dt_ns
+        ns_to_stamp(ns, self.msg_clock.clock)
+        self.pub_clock.publish(self.msg_clock)
+        js = self.msg_js
+        ns_to_stamp(ns, js.header.stamp)
+        js.position = self.sim.joint_positions().tolist()
+        js.velocity = self.sim.joint_velocities().tolist()
+        js.effort = self.sim.joint_efforts().tolist()
+        self.pub_js.publish(js)
+        od = self.msg_odom
+        ns_to_stamp(ns, od.header.stamp)
+        pos, quat = self.sim.pelvis_pose()
+        lin_body, ang_body = self.sim.pelvis_twist('local')
+        p = od.pose.pose
+        p.position.x, p.position.y, p.position.z = (float(v) for v in pos)
+        p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z = (float(v) for v in quat)
+        t = od.twist.twist
+        t.linear.x, t.linear.y, t.linear.z = (float(v) for v in lin_body)
+        t.angular.x, t.angular.y, t.angular.z = (float(v) for v in ang_body)
+        self.pub_odom.publish(od)
+
+    def _publish_event(self, k, event):
+        msg = ContactEvent()
+        ns_to_stamp(k * self.dt_ns, msg.header.stamp)
+        msg.header.frame_id = 'world'
+        msg.step = k
+        msg.event = int(event.kind)
+        msg.domain = domain_entered(event)
+        pos, quat = self.sim.pelvis_pose()
+        lin_w, ang_w = self.sim.pelvis_twist('world')
+        msg.pelvis_pose.position.x, msg.pelvis_pose.position.y, msg.pelvis_pose.position.z = map(float, pos)
+        o = msg.pelvis_pose.orientation
+        o.w, o.x, o.y, o.z = map(float, quat)
+        msg.pelvis_twist.linear.x, msg.pelvis_twist.linear.y, msg.pelvis_twist.linear.z = map(float, lin_w)
+        msg.pelvis_twist.angular.x, msg.pelvis_twist.angular.y, msg.pelvis_twist.angular.z = map(float, ang_w)
+        c, cv = self.sim.com_position(), self.sim.com_velocity()
+        msg.com_position.x, msg.com_position.y, msg.com_position.z = map(float, c)
+        msg.com_velocity.x, msg.com_velocity.y, msg.com_velocity.z = map(float, cv)
+        msg.centroidal_pitch_momentum = float(self.sim.centroidal_pitch_momentum())
+        fl, fr = self.sim.foot_normal_forces()
+        msg.left_normal_force, msg.right_normal_force = float(fl), float(fr)
+        self.pub_events.publish(msg)
+        self.node.get_logger().info(
+            f"t={k * self.dt:.4f} s: {event.kind.name} -> domain {msg.domain}")
+
+    # -- references and services -------------------------------------------------------------
+    def _note_reference(self, msg):
+        self.plan_in_force = (msg.plan_id, msg.domain, stamp_to_ns(msg.start_time))
+
+    def _handle_incoming(self, taken, k):
+        """Sort taken messages; return the command for step k if one came."""
+        cmd = None
+        for topic, msg in taken:
+            if topic == '/fslip/reference':
+                self._note_reference(msg)
+            elif msg.step == k and len(msg.effort) == 11:
+                cmd = msg
+            elif msg.step == k:
+                self.node.get_logger().error(
+                    f'/motor_command for step {k} has {len(msg.effort)} torques, not 11: ignored')
+        return cmd
+
+    def _hold_for_reference(self, k, domain):
+        """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
+        if self.plan_in_force is None or self.plan_in_force[1] == FlipReference.DOMAIN_STANDING:
+            return
+        t0 = time.monotonic()
+        now_ns = k * self.dt_ns
+        while time.monotonic() - t0 < PLANNER_HOLD_TIMEOUT_S:
+            pid, dom, start = self.plan_in_force
+            if dom == domain and start >= now_ns - self.dt_ns:
+                break
+            self._handle_incoming(self.subs.wait(0.1), -1)
+            if self.subs.interrupted:
+                return
+        else:
+            self.node.get_logger().warn(
+                f'no reference for domain {domain} within {PLANNER_HOLD_TIMEOUT_S} s: continuing')
+        self.hold_times.append(time.monotonic() - t0)
+        self.node.get_logger().info(f'held {1e3 * self.hold_times[-1]:.1f} ms for the planner')
+
+    def _on_reset(self, request, response):
+        self.reset_requested = True
+        response.success = True
+        response.message = 'reset to standing at the next step'
+        return response
+
+    # -- main loop ---------------------------------------------------------------------------
+    def run(self):
+        log = self.node.get_logger()
+        if self.controller == 'tsc':
+            log.info('waiting for the controller to subscribe to /joint_states')
+            while self.pub_js.get_subscription_count() < 1 or self.pub_odom.get_subscription_count() < 1:
+                self.executor.spin_once(timeout_sec=0.01)
+                if not rclpy.ok():
+                    return 0
+        n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
+        log.info(f'running: mode={self.mode} controller={self.controller} '
+                 f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel}')
+        wall0 = time.monotonic()
+        k = 0
+        late = missing = 0
+        while rclpy.ok() and (n_steps is None or k < n_steps):
+            if self.reset_requested:
+                self.sim.reset()
+                self.reset_requested = False
+                log.info('reset to standing')
+            for event in self.sim.pop_events():
+                self._publish_event(k, event)
+                if self.mode == 'lockstep':
+                    self._hold_for_reference(k, domain_entered(event))
+            self._publish_state(k)
+            if self.controller == 'tsc':
+                if self.mode == 'lockstep':
+                    cmd = self._wait_command(k)
+                    if cmd is None:
+                        break
+                    self.command[:] = cmd.effort
+                else:
+                    cmd = self._handle_incoming(self.subs.take_all(), k - 1)
+                    if cmd is not None:
+                        self.command[:] = cmd.effort
+                    else:
+                        missing += 1
+            self.sim.step(self.command)
+            k += 1
+            if self.mode == 'realtime':
+                lag = wall0 + k * self.dt - time.monotonic()
+                if lag > 0:
+                    time.sleep(lag)
+                else:
+                    late += 1
+            if k % 200 == 0:
+                self.executor.spin_once(timeout_sec=0.0)
+        wall = time.monotonic() - wall0
+        sim_t = k * self.dt
+        log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
+                 f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
+                 f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
+                 + (f'; realtime: {late} late steps, {missing} steps without a new command'
+                    if self.mode == 'realtime' else ''))
+        return 0
+
+    def _wait_command(self, k):
+        t_sent = time.monotonic()
+        warned = False
+        while True:
+            cmd = self._handle_incoming(self.subs.wait(COMMAND_RESEND_S), k)
+            if cmd is not None:
+                return cmd
+            if self.subs.interrupted or not rclpy.ok():
+                return None
+            if time.monotonic() - t_sent >= COMMAND_RESEND_S:
+                self.resends += 1
+                if not warned and time.monotonic() - t_sent > 1.0:
+                    self.node.get_logger().warn(f'controller silent for step {k}: waiting')
+                    warned = True
+                self._publish_state(k)
+                self.executor.spin_once(timeout_sec=0.0)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = SimNode()
+    except (ValueError, FileNotFoundError) as e:
+        print(f'sim_node: {e}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rc = node.run()
+    except KeyboardInterrupt:
+        rc = 0
+    finally:
+        node.subs.destroy()
+        node.node.destroy_node()
+        node.srv_node.destroy_node()
+        rclpy.try_shutdown()
+    return rc
+
+
+if __name__ == '__main__':
+    sys.exit(main())
