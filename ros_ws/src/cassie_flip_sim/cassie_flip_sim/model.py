@@ -22,6 +22,10 @@ FlywheelSpec = Union[str, P.Flywheel, Tuple[float, float], None]
 #: Contact geom names per foot (heel, toe).
 FOOT_GEOMS = {"left": ("left_foot_heel", "left_foot_toe"), "right": ("right_foot_heel", "right_foot_toe")}
 TERRAIN_GEOMS = ("ground", "start_platform", "landing_slab")
+#: contact bits: feet (contype 1) and upper body (contype 2) collide with terrain only
+FOOT_CONTYPE, BODY_CONTYPE = 1, 2
+#: bodies (by name suffix) whose geoms collide with the terrain besides the pelvis and flywheel
+BODY_COLLIDERS = ("_hip_roll", "_hip_yaw", "_hip_pitch", "_knee", "_shin")
 
 
 # --------------------------------------------------------------------------------------------
@@ -205,9 +209,17 @@ def build_spec(flywheel: FlywheelSpec = "I", scen: Union[str, Scenario, None] = 
     def terrain(name, gtype, size, pos, rgba):
         g = wb.add_geom()
         g.name, g.type, g.size, g.pos, g.rgba = name, gtype, size, pos, rgba
-        g.contype, g.conaffinity, g.condim, g.friction = 0, 1, 3, fr
+        g.contype, g.conaffinity, g.condim, g.friction = 0, FOOT_CONTYPE | BODY_CONTYPE, 3, fr
         g.solref = list(P.GEOM_SOLREF)
         g.group = 0
+
+    # The upper body (pelvis, flywheel, thighs, shins) also hits the terrain, so that a fall is a
+    # fall; the lower-leg linkage near the ground does not (it would touch when standing).
+    for body in spec.bodies:
+        if body.name == "flywheel" or body.name == "pelvis" or body.name.endswith(BODY_COLLIDERS):
+            for g in body.geoms:
+                if g.contype == 0 and g.name not in sum(FOOT_GEOMS.values(), ()):
+                    g.contype = BODY_CONTYPE
 
     terrain("ground", mujoco.mjtGeom.mjGEOM_PLANE, [0, 0, 0.125], [0, 0, 0], [0.25, 0.3, 0.35, 1])
     if sc.start_height > 0:

@@ -104,6 +104,7 @@ class SimNode:
         self.hold_times = []
         self.resends = 0
         self.reset_requested = False
+        self.body_contact = False
 
     # -- messages ----------------------------------------------------------------------------
     def _prealloc_messages(self):
@@ -159,6 +160,19 @@ class SimNode:
         self.pub_events.publish(msg)
         self.node.get_logger().info(
             f"t={k * self.dt:.4f} s: {event.kind.name} -> domain {msg.domain}")
+
+    def _publish_body_contact(self, k, bodies):
+        msg = ContactEvent()
+        ns_to_stamp(k * self.dt_ns, msg.header.stamp)
+        msg.header.frame_id = ','.join(bodies)
+        msg.step = k
+        msg.event = ContactEvent.BODY_CONTACT
+        pos, quat = self.sim.pelvis_pose()
+        msg.pelvis_pose.position.x, msg.pelvis_pose.position.y, msg.pelvis_pose.position.z = map(float, pos)
+        o = msg.pelvis_pose.orientation
+        o.w, o.x, o.y, o.z = map(float, quat)
+        self.pub_events.publish(msg)
+        self.node.get_logger().warn(f't={k * self.dt:.4f} s: {", ".join(bodies)} touching the terrain')
 
     # -- references and services -------------------------------------------------------------
     def _note_reference(self, msg):
@@ -226,6 +240,10 @@ class SimNode:
                 self._publish_event(k, event)
                 if self.mode == 'lockstep':
                     self._hold_for_reference(k, domain_entered(event))
+            touching = self.sim.body_contacts()
+            if touching and not self.body_contact:
+                self._publish_body_contact(k, touching)
+            self.body_contact = bool(touching)
             self._publish_state(k)
             if self.controller == 'tsc':
                 if self.mode == 'lockstep':

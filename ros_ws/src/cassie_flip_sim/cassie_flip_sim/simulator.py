@@ -181,5 +181,15 @@ class Simulator:
         """(left, right) ground normal forces (N) that acted during the last step."""
         return self.forces
 
+    def body_contacts(self) -> List[str]:
+        """Names of the bodies other than the feet touching the terrain now (a fall)."""
+        m, d = self.model, self.data
+        out = []
+        for c in d.contact[:d.ncon]:
+            for g in (c.geom1, c.geom2):
+                if m.geom_contype[g] == M.BODY_CONTYPE:
+                    out.append(m.body(m.geom_bodyid[g]).name)
+        return sorted(set(out))
+
     def total_mass(self) -> float:
         return float(mujoco.mj_getTotalmass(self.model))
