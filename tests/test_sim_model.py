@@ -6,6 +6,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from cassie_flip_sim.simulator import Simulator
 
 from cassie_flip_sim import model as M
 from cassie_flip_sim import robot_params as P
@@ -56,17 +57,34 @@ def test_flywheel_variants(variant, inertia, mass):
     assert m.body_parentid[b] == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
 
 
-def test_only_feet_collide_with_terrain(mj):
+def test_collisions_are_robot_terrain_only(mj):
+    """Feet and the upper body (a fall) collide with the terrain; nothing collides with itself."""
     feet = {n for s in ("left", "right") for n in M.FOOT_GEOMS[s]}
+    upper = set()
     for g in range(mj.ngeom):
         name = mj.geom(g).name
+        pair = (mj.geom_contype[g], mj.geom_conaffinity[g])
         if name in feet:
-            assert (mj.geom_contype[g], mj.geom_conaffinity[g]) == (1, 0)
+            assert pair == (M.FOOT_CONTYPE, 0)
         elif name in M.TERRAIN_GEOMS:
-            assert (mj.geom_contype[g], mj.geom_conaffinity[g]) == (0, 1)
+            assert pair == (0, M.FOOT_CONTYPE | M.BODY_CONTYPE)
         else:
-            assert (mj.geom_contype[g], mj.geom_conaffinity[g]) == (0, 0), name
+            assert pair in ((0, 0), (M.BODY_CONTYPE, 0)), name
+            if pair[0]:
+                upper.add(mj.body(mj.geom_bodyid[g]).name)
+    assert {"pelvis", "flywheel", "left_knee", "right_knee"} <= upper
+    assert not any(b.endswith(("_tarsus", "_foot", "_foot_crank", "_plantar_rod")) for b in upper)
     assert P.FOOT_LENGTH == pytest.approx(0.16, abs=1e-3)
+
+
+def test_standing_touches_with_feet_only_and_a_collapse_is_seen():
+    sim = Simulator()
+    assert sim.body_contacts() == []
+    for _ in range(4000):
+        sim.step(np.zeros(11))
+        if sim.body_contacts():
+            break
+    assert sim.body_contacts(), "zero torque for 2 s must bring the upper body to the ground"
 
 
 def test_standing_state_closes_loops_feet_flat(mj):
