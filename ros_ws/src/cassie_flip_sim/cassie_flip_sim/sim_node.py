@@ -21,7 +21,7 @@ import numpy as np
 import rclpy
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -35,6 +35,10 @@ from .simulator import Simulator
 
 #: longest wall time the simulator holds at a contact event for the planner's reference
 PLANNER_HOLD_TIMEOUT_S = 30.0
+#: realtime mode: steps without a fresh command before the motors go to damping (20 ms)
+WATCHDOG_STEPS = 40
+#: joint-side damping applied by the watchdog, N·m·s/rad
+WATCHDOG_DAMPING = 5.0
 #: wall time without a command before the state is sent again and the silence is reported
 COMMAND_RESEND_S = 0.05
 
@@ -191,6 +195,17 @@ class SimNode:
                     f'/motor_command for step {k} has {len(msg.effort)} torques, not 11: ignored')
         return cmd
 
+    def _newest_command(self, taken, k):
+        """Realtime mode: the newest well-formed command answering a recent step (≤ k)."""
+        best = None
+        for topic, msg in taken:
+            if topic == '/fslip/reference':
+                self._note_reference(msg)
+            elif len(msg.effort) == 11 and k - WATCHDOG_STEPS <= msg.step <= k:
+                if best is None or msg.step > best.step:
+                    best = msg
+        return best
+
     def _hold_for_reference(self, k, domain):
         """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
         if self.plan_in_force is None or self.plan_in_force[1] == FlipReference.DOMAIN_STANDING:
@@ -219,7 +234,7 @@ class SimNode:
     # -- main loop ---------------------------------------------------------------------------
     def run(self):
         log = self.node.get_logger()
-        if self.controller == 'tsc':
+        if self.controller == 'tsc' and self.mode == 'lockstep':
             log.info('waiting for the controller to subscribe to /joint_states')
             while self.pub_js.get_subscription_count() < 1 or self.pub_odom.get_subscription_count() < 1:
                 self.executor.spin_once(timeout_sec=0.01)
@@ -231,6 +246,7 @@ class SimNode:
         wall0 = time.monotonic()
         k = 0
         late = missing = 0
+        last_cmd_k, damping = 0, False
         while rclpy.ok() and (n_steps is None or k < n_steps):
             if self.reset_requested:
                 self.sim.reset()
@@ -252,19 +268,29 @@ class SimNode:
                         break
                     self.command[:] = cmd.effort
                 else:
-                    cmd = self._handle_incoming(self.subs.take_all(), k - 1)
+                    cmd = self._newest_command(self.subs.take_all(), k)
                     if cmd is not None:
                         self.command[:] = cmd.effort
+                        last_cmd_k = k
                     else:
                         missing += 1
+                        if k - last_cmd_k > WATCHDOG_STEPS:
+                            if not damping:
+                                log.warn(f'controller silent for {(k - last_cmd_k) * self.dt * 1e3:.0f} ms:'
+                                         ' motors to damping')
+                            damping = True
+                            self.command[:] = -WATCHDOG_DAMPING * self.sim.motor_velocities()
+                    if cmd is not None and damping:
+                        log.info('controller back: damping released')
+                        damping = False
             self.sim.step(self.command)
             k += 1
             if self.mode == 'realtime':
                 lag = wall0 + k * self.dt - time.monotonic()
                 if lag > 0:
                     time.sleep(lag)
-                else:
-                    late += 1
+                elif lag < -self.dt:
+                    late += 1       # more than one step behind the wall clock
             if k % 200 == 0:
                 self.executor.spin_once(timeout_sec=0.0)
         wall = time.monotonic() - wall0
@@ -304,7 +330,7 @@ def main(args=None):
         return 2
     try:
         rc = node.run()
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         rc = 0
     finally:
         node.subs.destroy()

@@ -184,12 +184,11 @@ class Simulator:
     def body_contacts(self) -> List[str]:
         """Names of the bodies other than the feet touching the terrain now (a fall)."""
         m, d = self.model, self.data
-        out = []
-        for c in d.contact[:d.ncon]:
-            for g in (c.geom1, c.geom2):
-                if m.geom_contype[g] == M.BODY_CONTYPE:
-                    out.append(m.body(m.geom_bodyid[g]).name)
-        return sorted(set(out))
+        if d.ncon == 0:
+            return []
+        g = d.contact.geom[:d.ncon].ravel()
+        g = g[m.geom_contype[g] == M.BODY_CONTYPE]
+        return sorted({m.body(b).name for b in m.geom_bodyid[g]}) if g.size else []
 
     def total_mass(self) -> float:
         return float(mujoco.mj_getTotalmass(self.model))
