@@ -10,6 +10,7 @@ Part 2 (lockstep node round trip): :func:`bench_lockstep`, to be filled in with 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from pathlib import Path
@@ -54,15 +55,38 @@ def bench_bare(steps: int, flywheel: str = "I") -> list[tuple[str, float]]:
     return rows
 
 
-def bench_lockstep(steps: int) -> list[tuple[str, float]]:
-    """Lockstep sim_node <-> controller round trip (steps/s).  To be written with the ROS node."""
-    raise NotImplementedError
+def bench_lockstep(steps: int, work_us: float = 0.0, pin_one_core: bool = False) -> float:
+    """Lockstep sim_node <-> echo_controller, each its own process: real-time factor over the
+    stepping loop (start-up excluded), as sim_node reports it."""
+    import os
+    import re
+    import subprocess
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(90 + os.getpid() % 10))
+    bindir = os.path.dirname(sys.executable)
+    pin = ["taskset", "-c", "0"] if pin_one_core else []
+    echo = subprocess.Popen(pin + [os.path.join(bindir, "echo_controller"), "--ros-args", "-p",
+                                   f"work_us:={work_us}"], env=env, stderr=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL)
+    try:
+        out = subprocess.run(pin + [os.path.join(bindir, "sim_node"), "--ros-args", "-p",
+                                    f"duration:={steps * 0.0005}"], env=env, capture_output=True,
+                             text=True, timeout=600)
+    finally:
+        echo.send_signal(signal.SIGINT)
+        echo.wait(timeout=10)
+    m = re.search(r"real-time factor ([0-9.]+)", out.stderr + out.stdout)
+    if not m:
+        raise RuntimeError("sim_node did not report its real-time factor:\n" + out.stderr[-2000:])
+    return float(m.group(1))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=4000)
     ap.add_argument("--flywheel", default="I")
+    ap.add_argument("--no-lockstep", dest="lockstep", action="store_false",
+                    help="skip the two-process lockstep measurement")
     a = ap.parse_args()
     rows = bench_bare(a.steps, a.flywheel)
     dt = 0.0005
@@ -70,6 +94,14 @@ def main() -> None:
     print(f"{'case':<{w}}  {'steps/s':>9}  {'us/step':>8}  {'x real time':>11}")
     for name, r in rows:
         print(f"{name:<{w}}  {r:9.0f}  {1e6 / r:8.1f}  {r * dt:11.1f}")
+    if a.lockstep:
+        print()
+        print(f"lockstep sim_node <-> echo_controller, {a.steps} steps (real-time factor over the stepping loop)")
+        print(f"{'controller work':>16}  {'cores':>9}  {'x real time':>11}")
+        for work in (0.0, 100.0):
+            for one in (False, True):
+                rtf = bench_lockstep(a.steps, work, one)
+                print(f"{work:13.0f} us  {'one' if one else 'two':>9}  {rtf:11.2f}")
 
 
 if __name__ == "__main__":

@@ -21,5 +21,8 @@ setup(
     maintainer_email="somersault@example.org",
     description="MuJoCo simulator of Cassie with a pelvis flywheel: deterministic 2 kHz lockstep node.",
     license="BSD-3-Clause",
-    entry_points={"console_scripts": ["sim_node = cassie_flip_sim.sim_node:main"]},
+    entry_points={"console_scripts": [
+        "sim_node = cassie_flip_sim.sim_node:main",
+        "echo_controller = cassie_flip_sim.echo_controller:main",
+    ]},
 )
