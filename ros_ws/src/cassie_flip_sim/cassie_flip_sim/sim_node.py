@@ -77,7 +77,9 @@ class SimNode:
         scenario = make_scenario(_declare(n, 'scenario', 'flat'),
                                  float(_declare(n, 'platform_height', 0.5)),
                                  float(_declare(n, 'ground_offset', 0.1)))
-        self.video_path = _declare(n, 'video_path', '')
+        # subscribers (besides a lockstep controller) to wait for before the first step, e.g. a
+        # recorder: best-effort messages sent before a reader has matched are lost
+        self.min_subscribers = int(_declare(n, 'min_subscribers', 0))
         if self.mode not in ('lockstep', 'realtime'):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
         if self.controller not in ('tsc', 'none'):
@@ -234,9 +236,12 @@ class SimNode:
     # -- main loop ---------------------------------------------------------------------------
     def run(self):
         log = self.node.get_logger()
-        if self.controller == 'tsc' and self.mode == 'lockstep':
-            log.info('waiting for the controller to subscribe to /joint_states')
-            while self.pub_js.get_subscription_count() < 1 or self.pub_odom.get_subscription_count() < 1:
+        need = self.min_subscribers + (1 if self.controller == 'tsc' and self.mode == 'lockstep' else 0)
+        if need:
+            log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock')
+            pubs = (self.pub_js, self.pub_odom, self.pub_clock)
+            while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
+                      for p in pubs):
                 self.executor.spin_once(timeout_sec=0.01)
                 if not rclpy.ok():
                     return 0
