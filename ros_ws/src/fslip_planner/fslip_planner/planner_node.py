@@ -1,0 +1,155 @@
+"""planner_node: the FSLIP planner as a ROS 2 node (thin adapter around ``fslip_planner.plan``).
+
+- ``/request_flip`` (flip_msgs/RequestFlip): validate → solve the jumping optimisation → publish the
+  JUMPING reference; an impossible or malformed request gets ``accepted=false`` and a reason.
+- ``/contact_events`` LIFT_OFF → flight plan (momentum transmission) from the measured state;
+  TOUCH_DOWN → landing optimisation from the measured post-impact state.
+Every reference goes out on ``/fslip/reference`` with its solve time.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
+from flip_msgs.msg import ContactEvent, FlipReference
+from flip_msgs.srv import RequestFlip
+from rosgraph_msgs.msg import Clock
+
+from .plan import FlipSession, InfeasibleRequest, MeasuredState
+
+KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP: 'frontflip',
+         RequestFlip.Request.HOP: 'hop'}
+#: sim-time lead given to the controller between publishing a jumping plan and its start
+START_LEAD_S = 0.25
+
+
+def measured_state(ev):
+    """The floating-base state carried by a ContactEvent, as the planner's MeasuredState."""
+    q = ev.pelvis_pose.orientation
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (q.w * q.y - q.z * q.x))))
+    return MeasuredState(
+        t=stamp_to_ns(ev.header.stamp) * 1e-9,
+        com=np.array([ev.com_position.x, ev.com_position.y, ev.com_position.z]),
+        com_velocity=np.array([ev.com_velocity.x, ev.com_velocity.y, ev.com_velocity.z]),
+        pitch_momentum=ev.centroidal_pitch_momentum,
+        pelvis_pitch=pitch,
+        pelvis_pitch_rate=ev.pelvis_twist.angular.y)
+
+
+class PlannerNode:
+    def __init__(self):
+        self.node = rclpy.create_node('planner_node')
+        n = self.node
+        self.flywheel = n.declare_parameter('flywheel', 'I').value
+        self.platform_height = float(n.declare_parameter('platform_height', 0.0).value)
+        self.pub = n.create_publisher(FlipReference, '/fslip/reference', LATCHED_QOS)
+        n.create_service(RequestFlip, '/request_flip', self._on_request)
+        n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
+        # The newest /clock is read on demand from a node no executor spins (no 2 kHz callbacks).
+        self._clock_node = rclpy.create_node('planner_clock')
+        self._clock = SubscriptionSet(self._clock_node, [(Clock, '/clock', STREAM_QOS)])
+        self.session = None
+        self.plan_id = 0
+
+    def _sim_now(self):
+        got = self._clock.take_all()
+        if got:
+            self._last_clock = stamp_to_ns(got[-1][1].clock) * 1e-9
+        return getattr(self, '_last_clock', 0.0)
+
+    def _publish(self, ref, start_time):
+        msg = FlipReference()
+        msg.plan_id = self.plan_id
+        msg.domain = ref.domain
+        ns_to_stamp(int(round(start_time * 1e9)), msg.start_time)
+        ns_to_stamp(int(round(start_time * 1e9)), msg.header.stamp)
+        msg.t = [float(x) for x in ref.t]
+        msg.output_names = list(ref.names)
+        msg.value = np.asarray(ref.value, float).ravel().tolist()
+        msg.d_value = np.asarray(ref.d_value, float).ravel().tolist()
+        msg.dd_value = np.asarray(ref.dd_value, float).ravel().tolist()
+        msg.parameter_names = list(ref.parameters)
+        msg.parameter_values = [float(v) for v in ref.parameters.values()]
+        for field in ('liftoff_zdot', 'liftoff_xdot', 'flight_time', 'rotation_to_go',
+                      'peak_flywheel_speed', 'solve_time'):
+            setattr(msg, field, float(ref.figures.get(field, 0.0)))
+        msg.iterations = int(ref.figures.get('iterations', 0))
+        self.pub.publish(msg)
+        self.node.get_logger().info(
+            f'plan {self.plan_id}: domain {ref.domain} published, start t={start_time:.4f} s, '
+            f'solve {1e3 * ref.figures.get("solve_time", 0.0):.1f} ms')
+
+    def _on_request(self, req, res):
+        res.accepted = False
+        kind = KINDS.get(req.kind)
+        if kind is None:
+            res.reason = f'unknown kind {req.kind}: expected 0 (backflip), 1 (frontflip) or 2 (hop)'
+            return res
+        if self.session is not None and not self.session.finished(self._sim_now()):
+            res.reason = f'a flip (plan {self.plan_id}) is under way: wait until it has landed'
+            return res
+        try:
+            session = FlipSession(kind, apex_height=req.apex_height or None,
+                                  forward_distance=req.forward_distance,
+                                  platform_height=req.platform_height or self.platform_height,
+                                  flywheel=self.flywheel)
+            ref = session.jumping_reference()
+        except (InfeasibleRequest, ValueError) as e:
+            res.reason = str(e)
+            self.node.get_logger().warn(f'request refused: {e}')
+            return res
+        self.plan_id += 1
+        self.session = session
+        start = self._sim_now() + START_LEAD_S
+        session.started(start)
+        self._publish(ref, start)
+        f = ref.figures
+        res.accepted = True
+        res.plan_id = self.plan_id
+        res.liftoff_zdot = float(f.get('liftoff_zdot', 0.0))
+        res.liftoff_xdot = float(f.get('liftoff_xdot', 0.0))
+        res.liftoff_pitch_rate = float(f.get('liftoff_pitch_rate', 0.0))
+        res.flight_time = float(f.get('flight_time', 0.0))
+        res.peak_flywheel_speed = float(f.get('peak_flywheel_speed', 0.0))
+        res.solve_time = float(f.get('solve_time', 0.0))
+        return res
+
+    def _on_event(self, ev):
+        if self.session is None:
+            return
+        state = measured_state(ev)
+        try:
+            if ev.event == ContactEvent.LIFT_OFF:
+                ref = self.session.flight_reference(state)
+            elif ev.event == ContactEvent.TOUCH_DOWN:
+                ref = self.session.landing_reference(state)
+            else:
+                return
+        except (InfeasibleRequest, ValueError, RuntimeError) as e:
+            self.node.get_logger().error(f'replanning at contact event failed: {e}')
+            return
+        if ref is not None:
+            self._publish(ref, state.t)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = PlannerNode()
+    try:
+        rclpy.spin(node.node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node._clock.destroy()
+        node._clock_node.destroy_node()
+        node.node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

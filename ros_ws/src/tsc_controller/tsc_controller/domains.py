@@ -1,0 +1,395 @@
+"""Domains (paper §II-B, §V-A), references, and the :class:`Controller` facade.
+
+Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs per domain:
+
+* STANDING — the jumping/landing outputs with constant desired values: H_pitch -> 0,
+  L -> L_stand, (x_com, y_com) -> middle of the feet, pelvis (roll, pitch, yaw) -> (0, 0, feet heading);
+  blended from the values at entry by a quintic over ``blend_time``.
+* JUMPING / LANDING — Y1 = H_pitch - H_FSLIP(t); Y2 = [L, x_com, y_com, phi_pitch, phi_yaw] - desired(t)
+  (eq. Y^{J/L}), plus phi_roll -> 0: the paper's sagittal outputs leave the pelvis roll of the 3D robot
+  unobserved, so it is held as an extra output.  Names missing from the reference keep their standing
+  values.
+* FLIGHT — Y1 = H_flywheel - H_flywheel^des(t) (eq. Y^F_1);  t < T1: per-leg L and the motor joints
+  except the knees held at their lift-off values q+;  t >= T1: per-leg L, leg angle -> -beta+, toe
+  pitch -> 0, hip roll/yaw held (eq. Y^F_2), per leg since Cassie has two.
+
+Switching: a JUMPING reference whose start time has come starts the flip (if it is not more than
+``max_late`` past its start: a plan is never joined in the middle); the LIFT_OFF contact event
+enters FLIGHT, TOUCH_DOWN enters LANDING; the end of the landing reference returns to STANDING.
+Reference time: JUMPING from the message's start_time, FLIGHT / LANDING from the lift-off / touch-down
+event (the paper plans them at those events).  Missing or late references never leave the robot
+without a command: JUMPING without lift-off past its end (+ ``grace``) falls back to STANDING, FLIGHT
+without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
+the standing outputs.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from . import outputs as O
+from .dynamics import SIDES, Dynamics
+from .limits import TorqueLimits
+from .state import StateConverter
+from .tsc import TSC, Desired
+
+
+class Domain(IntEnum):
+    STANDING = 0
+    JUMPING = 1
+    FLIGHT = 2
+    LANDING = 3
+
+
+LIFT_OFF, TOUCH_DOWN = 0, 1
+
+
+class SampledReference:
+    """A FlipReference in plain Python: samples ``t`` (s from start_time) x ``names``.
+
+    ``value``, ``d_value``, ``dd_value`` are (len(t), len(names)) (or flat row-major, as in the message).
+    """
+
+    def __init__(self, domain, t, names, value, d_value=None, dd_value=None, start_time=0.0,
+                 plan_id=0, parameters=None):
+        self.domain = Domain(int(domain))
+        self.t = np.asarray(t, float)
+        self.names = list(names)
+        n, k = len(self.t), len(self.names)
+
+        def arr(x):
+            return np.zeros((n, k)) if x is None or len(x) == 0 else np.asarray(x, float).reshape(n, k)
+        self.value, self.d_value, self.dd_value = arr(value), arr(d_value), arr(dd_value)
+        self.start_time = float(start_time)
+        self.plan_id = int(plan_id)
+        self.parameters = dict(parameters or {})
+        self._col = {nm: i for i, nm in enumerate(self.names)}
+
+    @classmethod
+    def from_msg(cls, msg):
+        """From a flip_msgs/FlipReference (duck-typed; no ROS import here)."""
+        st = msg.start_time.sec + 1e-9 * msg.start_time.nanosec
+        return cls(msg.domain, msg.t, msg.output_names, msg.value, msg.d_value, msg.dd_value, st,
+                   msg.plan_id, dict(zip(msg.parameter_names, msg.parameter_values)))
+
+    @property
+    def duration(self):
+        return float(self.t[-1]) if len(self.t) else 0.0
+
+    def has(self, name):
+        return name in self._col
+
+    def sample(self, tau):
+        """{name: (value, d_value, dd_value)} at tau (s from the reference's origin), clamped to the ends."""
+        t = self.t
+        if tau <= t[0]:
+            i, a = 0, 0.0
+        elif tau >= t[-1]:
+            i, a = len(t) - 2, 1.0
+        else:
+            i = int(np.searchsorted(t, tau)) - 1
+            a = (tau - t[i]) / (t[i + 1] - t[i])
+        if len(t) == 1:
+            rows = [self.value[0], self.d_value[0], self.dd_value[0]]
+        else:
+            rows = [(1 - a) * X[i] + a * X[i + 1] for X in (self.value, self.d_value, self.dd_value)]
+        return {nm: (rows[0][c], rows[1][c], rows[2][c]) for nm, c in self._col.items()}
+
+
+def quintic(y0, y1, T, s, v0=None):
+    """Quintic from (y0, v0, 0) to (y1, 0, 0) over T (min-jerk when v0 = 0), at time s: (y, ydot, yddot).
+
+    y = y0 + (y1 - y0) p(x) + v0 (s + T r(x)),  x = s/T,  p = 10x^3 - 15x^4 + 6x^5,  r = -6x^3 + 8x^4 - 3x^5."""
+    y1 = np.asarray(y1, float)
+    if T <= 0 or s >= T:
+        z = np.zeros_like(y1)
+        return y1, z, z
+    x = max(s, 0.0) / T
+    x2 = x * x
+    x3 = x2 * x
+    p, dp, ddp = x3 * (10 - 15 * x + 6 * x2), x2 * (30 - 60 * x + 30 * x2) / T, x * (60 - 180 * x + 120 * x2) / T ** 2
+    r, dr, ddr = x3 * (-6 + 8 * x - 3 * x2), x2 * (-18 + 32 * x - 15 * x2) / T, x * (-36 + 96 * x - 60 * x2) / T ** 2
+    d = y1 - y0
+    if v0 is None:
+        return y0 + p * d, dp * d, ddp * d
+    return y0 + p * d + (max(s, 0.0) + T * r) * v0, dp * d + (1.0 + T * dr) * v0, ddp * d + T * ddr * v0
+
+
+DEFAULT_GAINS = {
+    # name: (weight, kp, kd)
+    "H_pitch": (1.0, 10.0, 0.0),
+    "L": (10.0, 100.0, 20.0),
+    "com": (10.0, 100.0, 20.0),
+    "pelvis": (1.0, 100.0, 20.0),
+    "H_flywheel": (1.0, 20.0, 0.0),
+    "L_leg": (10.0, 100.0, 20.0),
+    "joints": (1.0, 100.0, 20.0),
+    "beta_leg": (10.0, 100.0, 20.0),
+    "toe_pitch": (1.0, 100.0, 20.0),
+}
+
+MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
+MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
+
+
+@dataclass
+class ControllerConfig:
+    solver: str = "daqp"              # measured fastest (scripts/bench_tsc.py); "proxqp" also works
+    reg: float = 1e-4
+    mu: float = 0.6
+    f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
+    rigid_springs: bool = True
+    L_stand: float | None = None      # default: leg length of the first state seen
+    blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
+    grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
+    max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
+    t1_fraction: float = 0.75
+    k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
+    gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
+
+
+def _mk(cls, name, gains, key=None, **kw):
+    w, kp, kd = gains[key or name]
+    return cls(name=name, weight=w, kp=kp, kd=kd, **kw)
+
+
+class Controller:
+    """TSC facade: ``Controller(mjcf_str).compute(q, v, t) -> (u[11], info)``."""
+
+    def __init__(self, mjcf: str, config: ControllerConfig | None = None, **overrides):
+        cfg = config or ControllerConfig()
+        for k, val in overrides.items():
+            setattr(cfg, k, val)
+        self.cfg = cfg
+        self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs)
+        self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min)
+        self.limits = TorqueLimits()
+        self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
+        g = cfg.gains
+        self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", g)
+        self.o_L = _mk(O.LegLength, "L", g)
+        self.o_com = _mk(O.ComPosition, "com", g, axes=(0, 1))
+        self.o_pel = _mk(O.PelvisOrientation, "pelvis", g, axes=("roll", "pitch", "yaw"))
+        self.ground_outputs = [self.o_H, self.o_L, self.o_com, self.o_pel]
+        self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
+        self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
+        self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
+        self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
+        self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
+        self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
+        self.refs: dict[Domain, SampledReference] = {}
+        self.domain = Domain.STANDING
+        self.t_enter = None
+        self._pending_event = None
+        self._stand = None
+        self._flight = None
+        self.u_prev = np.zeros(self.dyn.nu)
+        self.ticks = 0
+
+    # -------------------------------------------------------------- inputs
+    def set_reference(self, ref: SampledReference):
+        """Store a reference (the latest per domain wins)."""
+        self.refs[ref.domain] = ref
+
+    def on_contact_event(self, kind: int, *args):
+        """LIFT_OFF (0) or TOUCH_DOWN (1): ``on_contact_event(kind, t)`` or
+        ``on_contact_event(kind, domain_entered, t)`` (flip_msgs/ContactEvent fields)."""
+        t = args[-1]
+        self._pending_event = (int(kind), float(t))
+
+    # -------------------------------------------------------------- domain logic
+    def _enter(self, domain, t):
+        self.domain = Domain(domain)
+        self.t_enter = t
+        if domain in (Domain.STANDING, Domain.LANDING):
+            self._stand = None            # re-anchor the standing targets at the current state
+        if domain == Domain.FLIGHT:
+            self._flight = None
+
+    def _switch(self, t):
+        ev, self._pending_event = self._pending_event, None
+        d = self.domain
+        if ev is not None and ev[0] == LIFT_OFF and d in (Domain.STANDING, Domain.LANDING):
+            self._enter(Domain.FLIGHT, ev[1])      # a bounce: no ground model while airborne
+            return
+        if d == Domain.STANDING:
+            r = self.refs.get(Domain.JUMPING)
+            if r is not None and r.start_time <= t:
+                if t - r.start_time <= self.cfg.max_late:
+                    self._enter(Domain.JUMPING, t)
+                else:                              # arrived (or was processed) too late: never start mid-plan
+                    self.refs.pop(Domain.JUMPING, None)
+        elif d == Domain.JUMPING:
+            r = self.refs.get(Domain.JUMPING)
+            if ev is not None and ev[0] == LIFT_OFF:
+                self._enter(Domain.FLIGHT, ev[1])
+            elif r is None or t > r.start_time + r.duration + self.cfg.grace:
+                self.refs.pop(Domain.JUMPING, None)
+                self._enter(Domain.STANDING, t)
+        elif d == Domain.FLIGHT:
+            if ev is not None and ev[0] == TOUCH_DOWN:
+                self.refs.pop(Domain.JUMPING, None)
+                self.refs.pop(Domain.FLIGHT, None)
+                self._enter(Domain.LANDING, ev[1])
+        elif d == Domain.LANDING:
+            r = self.refs.get(Domain.LANDING)
+            done = r.start_time + r.duration < t if r is not None else t - self.t_enter > self.cfg.blend_time
+            if done:
+                self.refs.pop(Domain.LANDING, None)
+                self.refs.pop(Domain.FLIGHT, None)
+                self._enter(Domain.STANDING, t)
+
+    # -------------------------------------------------------------- outputs + desired
+    def _feet(self):
+        dyn = self.dyn
+        pts = [dyn.point(f"{s}_{k}")[0] for s in SIDES for k in ("toe", "heel")]
+        mid = np.mean(pts, axis=0)
+        head = [dyn.foot_frame(s)[0] for s in SIDES]
+        h = head[0] + head[1]
+        return mid, float(np.arctan2(h[1], h[0]))
+
+    def _standing_targets(self, t):
+        dyn = self.dyn
+        if self._stand is None:
+            mid, yaw = self._feet()
+            L0, _, _, Ld0 = self.o_L.evaluate(dyn)
+            if self.cfg.L_stand is None:
+                self.cfg.L_stand = float(L0[0])
+            c0, _, _, cd0 = self.o_com.evaluate(dyn)
+            p0, _, _, pd0 = self.o_pel.evaluate(dyn)
+            # start from the current value and velocity (soft catch after touch-down)
+            self._stand = dict(t0=t, L0=L0.copy(), c0=c0.copy(), p0=p0.copy(), L1=np.array([self.cfg.L_stand]),
+                               c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
+                               Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy())
+        s = self._stand
+        T, dt = self.cfg.blend_time, t - s["t0"]
+        return {
+            "H_pitch": Desired(np.zeros(1), np.zeros(1), np.zeros(1)),
+            "L": Desired(*quintic(s["L0"], s["L1"], T, dt, s["Ld0"])),
+            "com": Desired(*quintic(s["c0"], s["c1"], T, dt, s["cd0"])),
+            "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
+        }
+
+    def _ground_task(self, t, ref, tau):
+        des = self._standing_targets(t)
+        if ref is not None:
+            smp = ref.sample(tau)
+
+            def put(key, idx, name):
+                if name in smp:
+                    v, dv, ddv = smp[name]
+                    d = des[key]
+                    d.value = np.array(d.value, float)
+                    d.d_value = np.array(d.d_value, float)
+                    d.dd_value = np.array(d.dd_value, float)
+                    d.value[idx], d.d_value[idx], d.dd_value[idx] = v, dv, ddv
+            put("H_pitch", 0, "H_pitch")
+            put("L", 0, "L")
+            put("com", 0, "x_com")
+            put("com", 1, "y_com")
+            put("pelvis", 0, "phi_roll")
+            put("pelvis", 1, "phi_pitch")
+            put("pelvis", 2, "phi_yaw")
+        outs = self.ground_outputs
+        return outs, [des[o.name] for o in outs]
+
+    def _flight_task(self, t):
+        dyn = self.dyn
+        ref = self.refs.get(Domain.FLIGHT)
+        tau = t - self.t_enter
+        if self._flight is None:
+            q_pre = self.o_j_pre.evaluate(dyn)[0]
+            self._flight = dict(
+                H=self.o_Hfw.evaluate(dyn)[0], L=[o.evaluate(dyn)[0] for o in self.o_Lleg],
+                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0],
+                beta=[o.evaluate(dyn)[0] for o in self.o_beta])
+        f = self._flight
+        smp = ref.sample(tau) if ref is not None else {}
+        z = np.zeros(1)
+
+        def d(name, default):
+            if name in smp:
+                v, dv, ddv = smp[name]
+                return Desired(np.array([v]), np.array([dv]), np.array([ddv]))
+            return Desired(np.asarray(default, float), z, z)
+        T_f = None
+        if ref is not None:
+            T_f = ref.parameters.get("flight_time", ref.duration)
+        T1 = ref.parameters.get("T1", self.cfg.t1_fraction * T_f) if ref is not None else np.inf
+        outs = [self.o_Hfw] + self.o_Lleg
+        if "H_flywheel" in smp:
+            dH = d("H_flywheel", None)
+        else:
+            dH = Desired(np.array([self._momentum_transmission(smp)]), z, z)
+        des = [dH] + [d("L", f["L"][k]) for k in range(2)]
+        if tau < T1:
+            outs.append(self.o_j_pre)
+            des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
+        else:
+            bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
+            for k in range(2):
+                b = -(bplus if bplus is not None else f["beta"][k][0])
+                outs += [self.o_beta[k], self.o_toe[k]]
+                des += [d("beta_leg", [b]), d("toe_pitch", [0.0])]
+            outs.append(self.o_j_post)
+            des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
+        return outs, des
+
+    def _momentum_transmission(self, smp):
+        """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
+        with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
+        import pinocchio as pin
+        dyn = self.dyn
+        H_pitch = float(dyn.Ag[4] @ dyn.v)
+        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
+        I_rest = float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
+        theta = float(self.o_pel.evaluate(dyn)[0][1])
+        th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
+        om_cl = om_des - self.cfg.k_theta * (theta - th_des)
+        return H_pitch - om_cl * I_rest
+
+    def _task(self, t):
+        dom = self.domain
+        if dom == Domain.STANDING:
+            return True, *self._ground_task(t, None, 0.0)
+        if dom == Domain.JUMPING:
+            r = self.refs[Domain.JUMPING]
+            return True, *self._ground_task(t, r, t - r.start_time)
+        if dom == Domain.LANDING:
+            r = self.refs.get(Domain.LANDING)
+            tau = 0.0 if r is None else max(0.0, t - max(self.t_enter, r.start_time))
+            return True, *self._ground_task(t, r, tau)
+        return False, *self._flight_task(t)
+
+    # -------------------------------------------------------------- the tick
+    def compute(self, q, v, t):
+        """One TSC tick: returns (u (11,), info dict)."""
+        t0 = time.perf_counter()
+        self.dyn.update(q, v)
+        t_dyn = time.perf_counter() - t0
+        self._switch(t)
+        if self.t_enter is None:
+            self.t_enter = t
+        ground, outs, des = self._task(t)
+        lb, ub = self.limits.bounds(v[self.dyn.motor_v])
+        try:
+            res = self.tsc.solve(outs, des, ground, lb, ub)
+            u, status = res.u, res.status
+        except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
+            res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"
+        self.u_prev = u
+        self.ticks += 1
+        info = dict(tick_time=time.perf_counter() - t0, qp_status=status, domain=int(self.domain),
+                    qp_time=res.solve_time if res else 0.0, qp_iter=res.iterations if res else 0,
+                    timing=dict(dynamics=t_dyn, **(res.timing if res else {})))
+        if res is not None:
+            F = res.forces
+            info["forces"] = F
+            info["grf"] = (float(F[2] + F[4]), float(F[7] + F[9])) if ground else (0.0, 0.0)
+            info["errors"] = res.y
+        else:
+            info["grf"] = (0.0, 0.0)
+        return u, info

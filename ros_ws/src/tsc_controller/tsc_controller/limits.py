@@ -1,0 +1,54 @@
+"""Constraints of the TSC QP (paper eq. (QP)): torque–speed envelope and ground-reaction limits.
+
+* Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) from ``cassie_flip_sim.motor_limits.torque_bounds``
+  (the simulator's own envelope; the flywheel has a constant 195 N·m).
+* GRF: C_v F_v <= c_v, with F_v in the contact basis of :meth:`Dynamics.contact_constraints`
+  (per foot: toe (f_d, f_t, f_n), heel (f_t, f_n)):  f_n >= f_min at toe and heel (unilateral and
+  centre of pressure inside the foot), |f_t| <= mu f_n at each point, and the foot's along-foot
+  force (carried by the toe row only, see dynamics) |f_d| <= mu (f_n,toe + f_n,heel) — a friction pyramid.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+ROWS_PER_FOOT = 5
+
+
+def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0):
+    """(C, c) with C F <= c for the stacked foot forces (5 per foot, ordered as the contact rows)."""
+    rows, rhs = [], []
+    for k in range(n_feet):
+        o = ROWS_PER_FOOT * k
+        td, tt, tn, ht, hn = o, o + 1, o + 2, o + 3, o + 4
+
+        def row(coefs):
+            r = np.zeros(ROWS_PER_FOOT * n_feet)
+            for i, cval in coefs:
+                r[i] = cval
+            return r
+        rows += [row([(tn, -1.0)]), row([(hn, -1.0)])]
+        rhs += [-f_min, -f_min]
+        for i, n in ((tt, tn), (ht, hn)):
+            rows += [row([(i, 1.0), (n, -mu)]), row([(i, -1.0), (n, -mu)])]
+            rhs += [0.0, 0.0]
+        rows += [row([(td, 1.0), (tn, -mu), (hn, -mu)]), row([(td, -1.0), (tn, -mu), (hn, -mu)])]
+        rhs += [0.0, 0.0]
+    return np.array(rows), np.array(rhs)
+
+
+class TorqueLimits:
+    """u_lb(qdot), u_ub(qdot) of the 11 motors (contract order): the envelope of
+    ``cassie_flip_sim.motor_limits`` (same parameters, same formula, without its per-call overhead):
+    motoring, the torque falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
+
+    def __init__(self, limits=None):
+        from cassie_flip_sim import motor_limits as ml
+        lim = limits if limits is not None else ml.DEFAULT_LIMITS
+        self.tau_max = np.asarray(lim.torque_limit, float)
+        w0 = np.asarray(lim.no_load_speed, float)
+        self._inv_w0 = np.where(np.isinf(w0), 0.0, 1.0 / np.where(np.isinf(w0), 1.0, w0))
+
+    def bounds(self, motor_velocities):
+        w = np.asarray(motor_velocities, float)
+        avail = self.tau_max * np.clip(1.0 - np.abs(w) * self._inv_w0, 0.0, 1.0)
+        return np.where(w < 0, -avail, -self.tau_max), np.where(w > 0, avail, self.tau_max)

@@ -1,0 +1,84 @@
+"""Contract state (sensor_msgs/JointState + nav_msgs/Odometry arrays) -> Pinocchio (q, v).
+
+docs/architecture.md: /joint_states has one entry per DOF — hinges under their joint name, each ball
+joint (achilles rods) as ``<name>_x/_y/_z`` with the rotation vector (log map of the joint's quaternion)
+as position and the local angular velocity as velocity.  /odom: pelvis pose in the world
+(quaternion x, y, z, w) and twist in the pelvis (child) frame, REP 105 — which is exactly
+Pinocchio's free-flyer velocity (linear and angular, both local).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+
+class StateConverter:
+    """Builds (q, v) for a :class:`~tsc_controller.dynamics.Dynamics` model from contract arrays."""
+
+    def __init__(self, dyn):
+        self.dyn = dyn
+        m = dyn.model
+        self.base_q = m.idx_qs[dyn.base_jid]
+        self.base_v = m.idx_vs[dyn.base_jid]
+        self._names = None
+
+    def _index(self, names):
+        m = self.dyn.model
+        pos = {n: i for i, n in enumerate(names)}
+        hq, hv, hs, balls = [], [], [], []
+        for jid in range(1, m.njoints):
+            if jid == self.dyn.base_jid:
+                continue
+            name = m.names[jid].replace("-", "_")
+            nq, nv = m.nqs[jid], m.nvs[jid]
+            if nq == 1:
+                if name not in pos:
+                    raise KeyError(f"joint {name} missing from JointState")
+                hq.append(m.idx_qs[jid])
+                hv.append(m.idx_vs[jid])
+                hs.append(pos[name])
+            elif nq == 4 and nv == 3:
+                k = [pos[f"{name}_{a}"] for a in "xyz"]
+                balls.append((m.idx_qs[jid], m.idx_vs[jid], k))
+            else:
+                raise NotImplementedError(f"joint {name}: nq={nq}")
+        self._names = list(names)
+        self._hq, self._hv, self._hs = np.array(hq), np.array(hv), np.array(hs)
+        self._balls = balls
+
+    def from_ros(self, names, position, velocity, base_position, base_quat_xyzw, lin_vel_local, ang_vel_local):
+        """(q, v) from JointState (names, position, velocity) and Odometry (pose, child-frame twist)."""
+        if self._names is None or list(names) != self._names:
+            self._index(names)
+        position = np.asarray(position, float)
+        velocity = np.asarray(velocity, float)
+        q = np.empty(self.dyn.nq)
+        v = np.empty(self.dyn.nv)
+        b, bv = self.base_q, self.base_v
+        q[b:b + 3] = base_position
+        quat = np.asarray(base_quat_xyzw, float)
+        q[b + 3:b + 7] = quat / np.linalg.norm(quat)
+        v[bv:bv + 3] = lin_vel_local
+        v[bv + 3:bv + 6] = ang_vel_local
+        q[self._hq] = position[self._hs]
+        v[self._hv] = velocity[self._hs]
+        for iq, iv, k in self._balls:
+            R = pin.exp3(position[k])
+            q[iq:iq + 4] = pin.Quaternion(R).coeffs()   # x, y, z, w
+            v[iv:iv + 3] = velocity[k]
+        return q, v
+
+    def from_simulator(self, sim):
+        """(q, v) from a ``cassie_flip_sim.simulator.Simulator`` through the contract arrays."""
+        p, quat_wxyz = sim.pelvis_pose()
+        lin, ang = sim.pelvis_twist("local")
+        return self.from_ros(sim.joint_names, sim.joint_positions(), sim.joint_velocities(),
+                             p, np.r_[quat_wxyz[1:], quat_wxyz[0]], lin, ang)
+
+
+def state_from_ros(converter: StateConverter, js, odom):
+    """(q, v) from sensor_msgs/JointState and nav_msgs/Odometry messages (duck-typed, no ROS import)."""
+    p, o = odom.pose.pose.position, odom.pose.pose.orientation
+    lin, ang = odom.twist.twist.linear, odom.twist.twist.angular
+    return converter.from_ros(js.name, js.position, js.velocity, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w),
+                              (lin.x, lin.y, lin.z), (ang.x, ang.y, ang.z))

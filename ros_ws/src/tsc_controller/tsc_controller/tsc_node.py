@@ -1,0 +1,134 @@
+"""tsc_node: the task-space controller as a ROS 2 node (thin adapter around ``Controller``).
+
+Per simulator step k it takes ``/joint_states`` and ``/odom`` stamped k·dt, computes the 11 motor
+torques and publishes one ``/motor_command`` with ``step == k``. A state seen again (the simulator
+re-sends on a timeout) gets the same command again: the node is idempotent per step. References
+(``/fslip/reference``) and contact events (``/contact_events``) switch the domain; with neither,
+the controller holds the standing pose.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, SubscriptionSet,
+                                      stamp_to_ns)
+from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from .domains import Controller, SampledReference
+from .dynamics import MOTOR_NAMES
+from .state import state_from_ros
+
+DT_NS = 500_000
+
+
+class TscNode:
+    def __init__(self):
+        self.node = rclpy.create_node('tsc_node')
+        self.subs = SubscriptionSet(self.node, [
+            (JointState, '/joint_states', STREAM_QOS),
+            (Odometry, '/odom', STREAM_QOS),
+            (ContactEvent, '/contact_events', LATCHED_QOS),
+            (FlipReference, '/fslip/reference', LATCHED_QOS),
+            (String, '/robot_description', LATCHED_QOS),
+        ])
+        self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
+        self.controller = None
+        self.cmd = MotorCommand()
+        self.cmd.name = list(MOTOR_NAMES)
+        self.js = self.odom = None
+        self.answered_ns = -1
+        self.tick_us = []
+
+    def _on_reference(self, msg):
+        n_t, n_out = len(msg.t), len(msg.output_names)
+        shape = (n_t, n_out)
+        try:
+            ref = SampledReference(
+                domain=msg.domain, plan_id=msg.plan_id, start_time=stamp_to_ns(msg.start_time) * 1e-9,
+                t=np.asarray(msg.t), names=list(msg.output_names),
+                value=np.asarray(msg.value).reshape(shape),
+                d_value=np.asarray(msg.d_value).reshape(shape),
+                dd_value=np.asarray(msg.dd_value).reshape(shape),
+                parameters=dict(zip(msg.parameter_names, msg.parameter_values)))
+        except ValueError as e:
+            self.node.get_logger().error(f'malformed /fslip/reference ignored: {e}')
+            return
+        self.controller.set_reference(ref)
+        self.node.get_logger().info(f'reference: plan {msg.plan_id} domain {msg.domain}, '
+                                    f'{n_t} samples from t={ref.start_time:.3f} s')
+
+    def _answer(self, k_ns):
+        q, v = state_from_ros(self.controller.model_info, self.js, self.odom)
+        t0 = time.perf_counter()
+        u, info = self.controller.compute(q, v, k_ns * 1e-9)
+        dt_us = (time.perf_counter() - t0) * 1e6
+        self.tick_us.append(dt_us)
+        cmd = self.cmd
+        cmd.header.stamp = self.js.header.stamp
+        cmd.step = k_ns // DT_NS
+        cmd.effort = [float(x) for x in u]
+        cmd.compute_time_us = float(dt_us)
+        self.pub.publish(cmd)
+        self.answered_ns = k_ns
+
+    def run(self):
+        log = self.node.get_logger()
+        pending = []
+        while rclpy.ok():
+            taken = self.subs.wait(1.0)
+            if self.subs.interrupted:
+                break
+            for topic, msg in taken:
+                if topic == '/robot_description':
+                    self.controller = Controller(msg.data)
+                    log.info('controller built from /robot_description')
+                    for m in pending:
+                        self._on_reference(m)
+                    pending.clear()
+                elif topic == '/joint_states':
+                    self.js = msg
+                elif topic == '/odom':
+                    self.odom = msg
+                elif topic == '/fslip/reference':
+                    if self.controller is None:
+                        pending.append(msg)
+                    else:
+                        self._on_reference(msg)
+                elif topic == '/contact_events' and self.controller is not None:
+                    self.controller.on_contact_event(msg.event, msg.domain, stamp_to_ns(msg.header.stamp) * 1e-9)
+            if self.controller is None or self.js is None or self.odom is None:
+                continue
+            k_js, k_od = stamp_to_ns(self.js.header.stamp), stamp_to_ns(self.odom.header.stamp)
+            if k_js != k_od:
+                continue
+            if k_js == self.answered_ns:
+                self.pub.publish(self.cmd)      # the simulator asked again: same answer
+            elif k_js > self.answered_ns or k_js == 0:
+                self._answer(k_js)
+        if self.tick_us:
+            a = np.asarray(self.tick_us)
+            log.info(f'{a.size} ticks: median {np.median(a):.0f} us, p99 {np.percentile(a, 99):.0f} us')
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = TscNode()
+    try:
+        node.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.subs.destroy()
+        node.node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,163 @@
+#!/usr/bin/env python3
+"""Benchmark of one TSC tick (dynamics + outputs + QP) in closed loop with the MuJoCo simulator,
+and a comparison of QP solvers on the QPs of that run.
+
+    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp]
+
+Numbers are wall time of this process on this machine.  The closed-loop rows interleave a MuJoCo
+step between ticks (cold caches); the replay rows feed the recorded states back to back to a fresh
+controller, as a controller process of its own (tsc_node) sees them.  On a shared machine the
+medians of successive runs differ by up to 2x; the best replay is the least disturbed one.
+BLAS is pinned to one thread (set before numpy is imported): with OpenBLAS' default thread pool the
+small matrix products of a tick are 5-10x slower on a loaded 2-core machine.
+"""
+import os
+
+for _k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_k, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+_src = Path(__file__).resolve().parents[1] / "ros_ws" / "src"
+for p in ("tsc_controller", "cassie_flip_sim"):
+    if str(_src / p) not in sys.path:
+        sys.path.insert(0, str(_src / p))
+
+from cassie_flip_sim.model import export_mjcf  # noqa: E402
+from cassie_flip_sim.simulator import Simulator  # noqa: E402
+from tsc_controller import Controller, StateConverter  # noqa: E402
+from tsc_controller import tsc as T  # noqa: E402
+
+
+def stats(x):
+    x = np.asarray(x) * 1e6
+    return np.median(x), np.percentile(x, 99), x.max()
+
+
+def row(name, x, extra=""):
+    med, p99, mx = stats(x)
+    print(f"| {name:<34} | {med:9.1f} | {p99:9.1f} | {mx:9.1f} | {extra}")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=3.0, help="simulated standing time (2 kHz ticks)")
+    ap.add_argument("--warmup", type=float, default=0.5)
+    ap.add_argument("--solver", default="daqp", choices=sorted(T.SOLVERS))
+    ap.add_argument("--replays", type=int, default=3, help="replays of the recorded states, back to back")
+    a = ap.parse_args()
+
+    sim = Simulator()
+    ctl = Controller(export_mjcf(), solver=a.solver)
+    sc = StateConverter(ctl.dyn)
+    qps = []
+    orig = T.SOLVERS[a.solver].solve
+
+    def capture(self, H, g, C, lo, up, lb, ub):
+        qps.append(tuple(None if x is None else np.array(x) for x in (H, g, C, lo, up, lb, ub)))
+        return orig(self, H, g, C, lo, up, lb, ub)
+    T.SOLVERS[a.solver].solve = capture
+
+    n_w, n = int(a.warmup / sim.timestep), int(a.seconds / sim.timestep)
+    tick, parts, conv, status, states = [], {}, [], {}, []
+    for k in range(n_w + n):
+        t0 = time.perf_counter()
+        q, v = sc.from_simulator(sim)
+        t1 = time.perf_counter()
+        states.append((q, v, sim.time))
+        u, info = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        if k >= n_w:
+            conv.append(t1 - t0)
+            tick.append(info["tick_time"])
+            for kk, vv in info["timing"].items():
+                parts.setdefault(kk, []).append(vv)
+            status[info["qp_status"]] = status.get(info["qp_status"], 0) + 1
+    T.SOLVERS[a.solver].solve = orig
+
+    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver} "
+          f"(BLAS threads = {os.environ.get('OPENBLAS_NUM_THREADS')})")
+    print(f"| {'stage':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} |")
+    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
+    row("dynamics (Minv, nle, dccrba)", parts["dynamics"])
+    row("constraints J, Jdot v", parts["constraints"])
+    row("elimination A_v,b_v + outputs", parts["elimination_outputs"])
+    row("QP assembly + solve", parts["qp"])
+    row("TOTAL compute() (target 150 / 400)", tick)
+    row("(state conversion, not in total)", conv)
+    print(f"QP status: {status}")
+
+    # ---- the same states replayed through a fresh controller, back to back (a controller process
+    # of its own, as tsc_node: no simulator step between ticks to evict the caches)
+    best = None
+    for r in range(a.replays):
+        ctl2 = Controller(export_mjcf(), solver=a.solver)
+        rep = []
+        for k, (q, v, t) in enumerate(states):
+            t0 = time.perf_counter()
+            ctl2.compute(q, v, t)
+            if k >= n_w:
+                rep.append(time.perf_counter() - t0)
+        row(f"TOTAL compute(), replay {r + 1}", rep)
+        best = rep if best is None or np.median(rep) < np.median(best) else best
+    row("TOTAL compute(), best replay", best)
+
+    # ---- solver comparison on the recorded QPs (11 variables, 16 GRF rows + box)
+    print(f"\nQP solvers on the {len(qps)} recorded QPs (11 variables, {qps[0][2].shape[0]} inequality rows + bounds)")
+    print(f"| {'solver':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} | max |u - u_daqp|")
+    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|{'-' * 17}")
+    ref = [T._DAQP(11, p[2].shape[0]).solve(*p)[0] for p in qps]
+
+    def bench(name, make, warm=True):
+        s = None
+        times, err = [], 0.0
+        for p, r in zip(qps, ref):
+            if s is None or not warm:
+                s = make(p[2].shape[0])
+            t0 = time.perf_counter()
+            x = s.solve(*p)[0]
+            times.append(time.perf_counter() - t0)
+            err = max(err, float(np.abs(x - r).max()))
+        row(name, times, f"{err:.1e}")
+
+    bench("DAQP (dual active set)", lambda m: T._DAQP(11, m))
+    bench("ProxQP dense, warm-started", lambda m: T._ProxQP(11, m))
+    bench("ProxQP dense, set up every tick", lambda m: T._ProxQP(11, m), warm=False)
+    try:
+        import qpsolvers
+        for sv in ("daqp", "proxqp"):
+            class Q:
+                def __init__(self, m, sv=sv):
+                    self.sv = sv
+
+                def solve(self, H, g, C, lo, up, lb, ub):
+                    return qpsolvers.solve_qp(H, g, C, up, lb=lb, ub=ub, solver=self.sv), None, 0
+            bench(f"qpsolvers.solve_qp({sv!r})", Q)
+    except ImportError:
+        print("| qpsolvers not installed")
+    try:
+        import osqp  # noqa: F401
+        import scipy.sparse as sp
+
+        class O:
+            def __init__(self, m):
+                pass
+
+            def solve(self, H, g, C, lo, up, lb, ub):
+                s = osqp.OSQP()
+                A = sp.csc_matrix(np.vstack([C, np.eye(11)]))
+                s.setup(sp.csc_matrix(np.triu(H)), g, A, np.r_[lo, lb], np.r_[up, ub], verbose=False,
+                        eps_abs=1e-7, eps_rel=1e-7, polish=True)
+                return s.solve().x, None, 0
+        bench("OSQP, set up every tick", O)
+    except ImportError:
+        print("| OSQP: not installed in the venv (not compared)")
+
+
+if __name__ == "__main__":
+    main()

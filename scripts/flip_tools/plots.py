@@ -1,0 +1,252 @@
+"""PNG plots of a run from its bag (matplotlib Agg; no ROS import), after the paper's Fig. 6.
+
+fig6.png      pitch momentum (planned per domain vs. measured at contact events), leg length,
+              ground normal force, x_com, pelvis pitch (planned vs. /odom), flywheel torque and
+              speed — each panel shows what the bag holds and says "not in the bag" otherwise.
+pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
+torques.png   the 11 commanded motor torques.
+tsc_tick.png  histogram of MotorCommand.compute_time_us.
+Domains (from /contact_events and the plan's start) are shaded in every time plot.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .bag import BagData, load_bag  # noqa: E402
+from .summary import odom_time, pitch_unwrapped, tilt  # noqa: E402
+
+DOMAIN_NAMES = {0: "standing", 1: "jumping", 2: "flight", 3: "landing"}
+DOMAIN_COLORS = {0: "#ffffff", 1: "#fff3d6", 2: "#dcecff", 3: "#e3f5e1"}
+
+
+def plot_bag(bag: str | Path, out_dir: str | Path, data: BagData | None = None) -> list[Path]:
+    data = data or load_bag(bag)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [_fig6(data, out / "fig6.png"), _pelvis(data, out / "pelvis.png"),
+             _torques(data, out / "torques.png"), _tick(data, out / "tsc_tick.png")]
+    return [f for f in files if f is not None]
+
+
+# ---------------------------------------------------------------------------------------------
+def _refs(data):
+    fr = data.get("/fslip/reference")
+    return fr["refs"] if fr else []
+
+
+def _ref_series(data, name):
+    """[(domain, t_abs, value)] of one reference output, newest plan only."""
+    refs = _refs(data)
+    if not refs:
+        return []
+    last_plan = refs[-1]["plan_id"]
+    out = []
+    for r in refs:
+        if r["plan_id"] != last_plan or name not in r["output_names"]:
+            continue
+        v = np.asarray(r["value"])
+        if v.ndim != 2:
+            continue
+        out.append((r["domain"], r["start_time"] + r["t"], v[:, r["output_names"].index(name)]))
+    return out
+
+
+def _domain_spans(data):
+    """[(t0, t1, domain)] from the first JUMPING reference start and the contact events."""
+    marks = []
+    for r in _refs(data):
+        if r["domain"] == 1:
+            marks.append((r["start_time"], 1))
+            break
+    ce = data.get("/contact_events")
+    if ce is not None:
+        marks += [(float(t), int(d)) for t, d in zip(ce["t"], ce["domain"])]
+    marks.sort()
+    t_end = None
+    od = data.get("/odom")
+    if od is not None and len(od["pos"]):
+        t_end = float(odom_time(od)[0][-1])
+    spans = []
+    for i, (t0, d) in enumerate(marks):
+        t1 = marks[i + 1][0] if i + 1 < len(marks) else t_end
+        if t1 is not None and t1 > t0:
+            spans.append((t0, t1, d))
+    return spans
+
+
+def _shade(ax, spans):
+    for t0, t1, d in spans:
+        ax.axvspan(t0, t1, color=DOMAIN_COLORS.get(d, "#eeeeee"), alpha=0.8, lw=0, zorder=0)
+
+
+def _missing(ax, what):
+    ax.text(0.5, 0.5, f"{what}: not in the bag", ha="center", va="center", transform=ax.transAxes,
+            color="0.4", fontsize=9)
+
+
+def _plot_ref(ax, data, name, scale=1.0, label="planned"):
+    series = _ref_series(data, name)
+    for i, (dom, t, v) in enumerate(series):
+        ax.plot(t, v * scale, "--", color="C3", lw=1.5, label=label if i == 0 else None)
+    return bool(series)
+
+
+# ---------------------------------------------------------------------------------------------
+def _fig6(data, path):
+    fig, axs = plt.subplots(7, 1, figsize=(8, 15), sharex=True)
+    spans = _domain_spans(data)
+    for ax in axs:
+        _shade(ax, spans)
+    ce = data.get("/contact_events")
+    od = data.get("/odom")
+    js = data.get("/joint_states")
+    mc = data.get("/motor_command")
+
+    ax = axs[0]
+    ax.set_ylabel("pitch momentum\n(kg m²/s)")
+    have = _plot_ref(ax, data, "H_pitch")
+    if ce is not None and len(ce["t"]):
+        ax.plot(ce["t"], ce["H_pitch"], "o", color="C0", label="measured (contact events)")
+        have = True
+    if not have:
+        _missing(ax, "H_pitch")
+
+    ax = axs[1]
+    ax.set_ylabel("leg length L (m)")
+    if not _plot_ref(ax, data, "L"):
+        _missing(ax, "planned L")
+
+    ax = axs[2]
+    ax.set_ylabel("normal force (N)")
+    if ce is not None and len(ce["t"]):
+        ax.step(ce["t"], ce["left_normal_force"], where="post", color="C0", label="left (contact events)")
+        ax.step(ce["t"], ce["right_normal_force"], where="post", color="C1", label="right (contact events)")
+    else:
+        _missing(ax, "/contact_events")
+
+    ax = axs[3]
+    ax.set_ylabel("x_com (m)")
+    have = _plot_ref(ax, data, "x_com")
+    if od is not None and len(od["pos"]):
+        t, _ = odom_time(od)
+        ax.plot(t, od["pos"][:, 0], color="0.5", lw=1, label="pelvis x (/odom)")
+        have = True
+    if ce is not None and len(ce["t"]):
+        ax.plot(ce["t"], ce["com_pos"][:, 0], "o", color="C0", label="COM x (contact events)")
+        have = True
+    if not have:
+        _missing(ax, "x_com")
+
+    ax = axs[4]
+    ax.set_ylabel("pelvis pitch (deg)")
+    have = _plot_ref(ax, data, "phi_pitch", scale=180 / np.pi)
+    if od is not None and len(od["pos"]) > 1:
+        t, _ = odom_time(od)
+        ax.plot(t, np.degrees(pitch_unwrapped(od["quat"])), color="C0", label="measured (/odom)")
+        have = True
+    if not have:
+        _missing(ax, "/odom")
+
+    ax = axs[5]
+    ax.set_ylabel("flywheel torque\n(N m)")
+    have = False
+    if mc is not None and "flywheel" in mc["names"]:
+        ax.plot(mc["t"], mc["effort"][:, mc["names"].index("flywheel")], color="C0", lw=1, label="commanded")
+        have = True
+    if js is not None and "flywheel" in js["names"]:
+        ax.plot(js["t"], js["eff"][:, js["names"].index("flywheel")], color="C2", lw=1, alpha=0.7,
+                label="applied (/joint_states)")
+        have = True
+    if not have:
+        _missing(ax, "flywheel torque")
+
+    ax = axs[6]
+    ax.set_ylabel("flywheel speed\n(rpm)")
+    if js is not None and "flywheel" in js["names"]:
+        ax.plot(js["t"], js["vel"][:, js["names"].index("flywheel")] * 60 / (2 * np.pi), color="C0")
+    else:
+        _missing(ax, "flywheel speed")
+    ax.set_xlabel("sim time (s)")
+
+    for ax in axs:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best")
+        ax.grid(alpha=0.3)
+    handles = [plt.Rectangle((0, 0), 1, 1, color=DOMAIN_COLORS[d]) for d in (1, 2, 3)]
+    fig.legend(handles, [DOMAIN_NAMES[d] for d in (1, 2, 3)], loc="upper center", ncol=3, fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 0.98))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _pelvis(data, path):
+    od = data.get("/odom")
+    if od is None or len(od["pos"]) < 2:
+        return None
+    t, src = odom_time(od)
+    fig, axs = plt.subplots(4, 1, figsize=(8, 9), sharex=True)
+    spans = _domain_spans(data)
+    for ax in axs:
+        _shade(ax, spans)
+    axs[0].plot(t, od["pos"][:, 0])
+    axs[0].set_ylabel("x (m)")
+    axs[1].plot(t, od["pos"][:, 2])
+    axs[1].set_ylabel("z (m)")
+    axs[2].plot(t, np.degrees(pitch_unwrapped(od["quat"])))
+    axs[2].set_ylabel("pitch about +y (deg)")
+    axs[3].plot(t, np.degrees(tilt(od["quat"])))
+    axs[3].set_ylabel("tilt (deg)")
+    axs[3].set_xlabel(f"time (s, {src})")
+    for ax in axs:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _torques(data, path):
+    mc = data.get("/motor_command")
+    if mc is None or not mc["effort"].size:
+        return None
+    fig, ax = plt.subplots(figsize=(9, 5))
+    _shade(ax, _domain_spans(data))
+    for i, n in enumerate(mc["names"]):
+        ax.plot(mc["t"], mc["effort"][:, i], lw=1, label=n)
+    ax.set_xlabel("sim time (s)")
+    ax.set_ylabel("commanded torque (N m)")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _tick(data, path):
+    mc = data.get("/motor_command")
+    if mc is None or not len(mc["compute_time_us"]):
+        return None
+    v = mc["compute_time_us"]
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return None
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.hist(v, bins=80)
+    med, p99 = np.median(v), np.percentile(v, 99)
+    ax.axvline(med, color="C1", label=f"median {med:.0f} µs")
+    ax.axvline(p99, color="C3", label=f"p99 {p99:.0f} µs")
+    ax.set_xlabel("controller tick (µs, MotorCommand.compute_time_us)")
+    ax.set_ylabel("ticks")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,242 @@
+"""A stand-in for `ros2 bag record`: rclpy raw subscriptions -> rosbags' rosbag2 MCAP Writer.
+
+- Serialized CDR bytes go straight from the subscription (raw=True) to the bag; no
+  deserialisation on the hot path.
+- Log time = the RMW's receive timestamp (wall clock, ns) of each message.
+- Subscription QoS follows the publishers (like rosbag2's adaptive QoS): reliable only if every
+  publisher is reliable, transient-local only if every publisher is; before any publisher is seen,
+  the contract table of docs/architecture.md decides. Depth is large (10,000) so bursts queue.
+- Topics are either given, or discovered (`all_topics=True`: every topic that appears, polled
+  from the graph, except /parameter_events).
+- flip_msgs types come from the .msg files (rosbags.typesys.get_types_from_msg), so the bag
+  carries their full message definitions.
+- Progress on /flip_recorder/status (std_msgs/String, JSON): messages recorded and publishers
+  matched per topic, twice a second; an orchestrator waits on "matched" before it starts the
+  experiment (another process seeing both endpoints does not mean they have matched).
+- SIGINT/SIGTERM, or `duration`, ends the recording; the bag is closed, counts are printed as one
+  JSON line `{"recorded": {...}}` on stdout.
+"""
+from __future__ import annotations
+
+import json
+import signal
+import time
+from pathlib import Path
+
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.rosbag2 import StoragePlugin, Writer
+
+from .rosenv import CONTRACT_TOPICS, message_class
+from .typestore import flip_typestore
+
+RECORDER_NODE = "flip_recorder"
+SUB_DEPTH = 10000
+EXCLUDE = {"/parameter_events"}
+
+
+def _rb_qos(reliable: bool, transient_local: bool, depth: int) -> Qos:
+    """The offered QoS written to metadata.yaml (rosbag2 v9 form)."""
+    z = QosTime(0, 0)
+    return Qos(QosHistory.KEEP_LAST, depth,
+               QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+               QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+               z, z, QosLiveliness.AUTOMATIC, z, False)
+
+
+class Recorder:
+    def __init__(self, node, bag_dir: str | Path, topics: list[str] | None = None,
+                 all_topics: bool = False, types: dict[str, str] | None = None):
+        self.node = node
+        self.bag_dir = Path(bag_dir)
+        self.want = list(topics or [])
+        self.all_topics = all_topics or not self.want
+        self.types = dict(types or {})
+        self.typestore = flip_typestore()
+        self.writer = Writer(self.bag_dir, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer.open()
+        self.conns: dict[str, object] = {}
+        self.subs: dict[str, object] = {}
+        self.counts: dict[str, int] = {}
+        self.qos_used: dict[str, dict] = {}
+        self.closed = False
+        self.t_first = None
+        self.t_last = None
+        # progress for whoever orchestrates: {"counts": {...}} on /<node>/status, twice a second
+        from std_msgs.msg import String
+        self._String = String
+        self.status_topic = node.get_fully_qualified_name() + "/status"
+        self._status_pub = node.create_publisher(String, self.status_topic, 10)
+        self._poll_timer = node.create_timer(0.2, self.discover)
+        self._status_timer = node.create_timer(0.5, self.publish_status)
+        self.discover()
+
+    def publish_status(self) -> None:
+        if not self.closed:
+            self._status_pub.publish(self._String(data=json.dumps({"counts": self.counts,
+                                                                   "matched": self.matched()})))
+
+    def matched(self) -> dict[str, int]:
+        """Publishers each subscription is matched with, as this process's DDS sees it (the graph
+        seen by another process can be ahead: discovery is per participant)."""
+        out = {}
+        for topic, sub in self.subs.items():
+            if sub is not None:
+                try:
+                    out[topic] = sub.get_publisher_count()
+                except Exception:  # noqa: BLE001
+                    out[topic] = 0
+        return out
+
+    # -- subscription management ----------------------------------------------------------------
+    def _graph_type(self, topic: str) -> str | None:
+        for name, types in self.node.get_topic_names_and_types():
+            if name == topic and types:
+                return types[0]
+        return None
+
+    def _adaptive_qos(self, topic: str):
+        """(reliable, transient_local) matching every publisher seen; None if no publisher."""
+        infos = self.node.get_publishers_info_by_topic(topic)
+        if not infos:
+            return None
+        from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+        rel = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+        tl = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+        return rel, tl
+
+    def discover(self) -> None:
+        if self.closed:
+            return
+        wanted = list(self.want)
+        if self.all_topics:
+            for name, _types in self.node.get_topic_names_and_types():
+                if name not in EXCLUDE and name != self.status_topic and name not in wanted:
+                    wanted.append(name)
+        for topic in wanted:
+            if topic not in self.subs:
+                self._try_subscribe(topic)
+
+    def _try_subscribe(self, topic: str) -> None:
+        msgtype = self.types.get(topic) or self._graph_type(topic)
+        spec = CONTRACT_TOPICS.get(topic)
+        if msgtype is None and spec is not None:
+            msgtype = spec.msgtype
+        if msgtype is None:
+            return  # not typed yet; retry on the next discovery tick
+        q = self._adaptive_qos(topic)
+        if q is None:
+            if spec is None:
+                return  # wait for a publisher to learn its QoS
+            q = (spec.reliable, spec.transient_local)
+        rel, tl = q
+        try:
+            cls = message_class(msgtype)
+        except (ImportError, AttributeError) as e:
+            self.node.get_logger().warning(f"cannot record {topic} [{msgtype}]: {e}")
+            self.subs[topic] = None
+            return
+        try:
+            self.typestore.fielddefs[msgtype]
+        except KeyError:
+            self.node.get_logger().warning(f"cannot record {topic}: {msgtype} not in the rosbags typestore")
+            self.subs[topic] = None
+            return
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SUB_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE if rel else ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL if tl else DurabilityPolicy.VOLATILE)
+        conn = self.writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                          offered_qos_profiles=[_rb_qos(rel, tl, spec.depth if spec else 10)])
+        self.conns[topic] = conn
+        self.counts[topic] = 0
+        self.qos_used[topic] = {"type": msgtype, "reliable": rel, "transient_local": tl}
+
+        def cb(msg, info, _topic=topic, _conn=conn):
+            self._write(_topic, _conn, msg, info)
+            self._drain(_topic, _conn)
+
+        self.subs[topic] = self.node.create_subscription(cls, topic, cb, qos, raw=True)
+
+    # -- hot path ---------------------------------------------------------------------------------
+    def _write(self, topic, conn, data: bytes, info) -> None:
+        t = info.get("received_timestamp") if isinstance(info, dict) else None
+        if not t:
+            t = time.time_ns()
+        self.writer.write(conn, int(t), data)
+        self.counts[topic] += 1
+        if self.t_first is None:
+            self.t_first = t
+        self.t_last = t
+
+    def _drain(self, topic, conn, limit: int = 1000) -> None:
+        """Take whatever else is queued on this subscription without going back to the executor."""
+        sub = self.subs.get(topic)
+        if sub is None:
+            return
+        with sub.handle:
+            for _ in range(limit):
+                r = sub.handle.take_message(sub.msg_type, True)
+                if r is None:
+                    return
+                self._write(topic, conn, r[0], r[1])
+
+    def drain_all(self) -> None:
+        for topic, sub in list(self.subs.items()):
+            if sub is not None:
+                try:
+                    self._drain(topic, self.conns[topic], limit=10**7)
+                except Exception:  # context already shut down
+                    pass
+
+    def close(self) -> dict:
+        if not self.closed:
+            self.closed = True
+            self.writer.close()
+        return dict(self.counts)
+
+
+def record(bag_dir: str | Path, topics: list[str] | None = None, all_topics: bool = False,
+           duration: float | None = None, domain_id: int | None = None, node_name: str = RECORDER_NODE,
+           stats_path: str | Path | None = None) -> dict:
+    """Run a recorder in this process until SIGINT/SIGTERM or `duration` wall seconds."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    bag_dir = Path(bag_dir)
+    if bag_dir.exists():
+        raise FileExistsError(f"{bag_dir} exists; rosbag2 needs a new directory")
+    bag_dir.parent.mkdir(parents=True, exist_ok=True)
+    stop = {"flag": False}
+
+    def _on_signal(signum, frame):
+        stop["flag"] = True
+
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    node = rclpy.create_node(node_name, start_parameter_services=False)
+    rec = Recorder(node, bag_dir, topics, all_topics)
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    t0 = time.monotonic()
+    try:
+        while not stop["flag"]:
+            if duration is not None and time.monotonic() - t0 >= duration:
+                break
+            ex.spin_once(timeout_sec=0.1)
+        rec.drain_all()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        rec.drain_all()
+    finally:
+        counts = rec.close()
+        try:
+            node.destroy_node()
+        except Exception:
+            pass
+        rclpy.try_shutdown()
+    stats = {"recorded": counts, "bag": str(bag_dir), "qos": rec.qos_used,
+             "wall_s": round(time.monotonic() - t0, 3)}
+    if stats_path:
+        Path(stats_path).write_text(json.dumps(stats, indent=2))
+    print(json.dumps(stats), flush=True)
+    return stats

@@ -1,0 +1,362 @@
+"""Foundation tests: process harness, flip_msgs between processes, the bag recorder, the
+summary verdict. Node processes here are the stand-ins under tests/nodes/ (test fixtures)."""
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ros_harness import FLIP, REPO, stand_in
+
+sys.path.insert(0, str(REPO / "scripts"))
+
+from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand  # noqa: E402
+from flip_msgs.srv import RequestFlip  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+MOTORS = ["left_hip_roll", "left_hip_yaw", "left_hip_pitch", "left_knee", "left_foot",
+          "right_hip_roll", "right_hip_yaw", "right_hip_pitch", "right_knee", "right_foot", "flywheel"]
+BEST_EFFORT = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+def latched(depth):
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+# ---------------------------------------------------------------------------------------------
+# (a) two real node processes pass a flip_msgs message; a RequestFlip call is answered
+def test_flip_msgs_between_processes_and_service(ros_graph):
+    ros_graph.start("source", stand_in("source_node.py"), node_name="source_node")
+    ros_graph.start("echo", stand_in("echo_node.py"), node_name="echo_node")
+    ros_graph.start("planner", stand_in("fake_planner_node.py"), node_name="planner_node")
+    tn = ros_graph.test_node
+    echoed = tn.collect(MotorCommand, "/motor_command_echo", QoSProfile(depth=10))
+    ros_graph.wait_ready(nodes=["source_node", "echo_node", "planner_node"], services=["/request_flip"],
+                         topics={"/motor_command": (1, 1), "/motor_command_echo": (1, 1)})
+
+    tn.spin_until(lambda: len(echoed) >= 3, what="3 MotorCommands relayed source -> echo -> test")
+    m = echoed[-1]
+    assert list(m.name) == MOTORS
+    assert list(m.effort) == pytest.approx([0.5 * i for i in range(11)])
+    assert m.compute_time_us >= 3.0          # set by the echo process: it went through it
+    assert m.step >= 2 and m.header.stamp.nanosec == 1000 * m.step
+
+    resp = tn.call(RequestFlip, "/request_flip",
+                   RequestFlip.Request(kind=RequestFlip.Request.BACKFLIP, apex_height=0.5))
+    assert resp.accepted, resp.reason
+    assert resp.reason == "" and resp.plan_id == 1 and resp.flight_time > 0
+    assert resp.liftoff_pitch_rate < 0          # backflip: negative pitch about +y
+    # teardown (fixture): SIGINT to every process, each must exit 0, nothing left behind
+
+
+# (d) reserved for the lead: against the real planner_node, a RequestFlip with NaN, a negative
+# apex or an unknown kind gets accepted=false with a reason and the node keeps serving.
+@pytest.mark.skip(reason="(d) to be written by the lead against the real planner_node")
+def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
+    # ros_graph.start("planner", [<venv>/bin/planner_node], node_name="planner_node")
+    # ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
+    # for req in (nan apex, apex=-0.1, kind=99): r = test_node.call(...); assert not r.accepted and r.reason
+    # then a valid request is still answered
+    pass
+
+
+# ---------------------------------------------------------------------------------------------
+def test_launcher_escalates_and_leaves_nothing_behind(ros_graph):
+    """A process that ignores SIGINT gets SIGTERM; one that ignores both gets SIGKILL; a
+    grandchild in the process group is killed too."""
+    py = sys.executable
+    ignore_int = ("import signal,time; signal.signal(signal.SIGINT, signal.SIG_IGN); print('ready', flush=True);"
+                  "time.sleep(600)")
+    ignore_all = ("import signal,time,subprocess; [signal.signal(s, signal.SIG_IGN) for s in "
+                  "(signal.SIGINT, signal.SIGTERM)]; subprocess.Popen(['sleep','600']); print('ready', flush=True);"
+                  "time.sleep(600)")
+    L = ros_graph.launcher
+    L.start("stubborn", [py, "-c", ignore_int])
+    L.start("deaf", [py, "-c", ignore_all])
+    L.start("polite", ["sleep", "600"])
+    for name in ("stubborn", "deaf"):   # signal handlers installed (not a sleep: wait for the line)
+        ros_graph.test_node.spin_until(lambda: "ready" in L.procs[name].log_text(), what=f"{name} ready")
+    rc1 = L.stop("stubborn", sigint_timeout=0.5, sigterm_timeout=5)
+    rc2 = L.stop("deaf", sigint_timeout=0.5, sigterm_timeout=0.5)
+    rc3 = L.stop("polite")
+    assert (rc1, L.procs["stubborn"].stopped_by) == (-signal.SIGTERM, "SIGTERM")
+    assert (rc2, L.procs["deaf"].stopped_by) == (-signal.SIGKILL, "SIGKILL")
+    assert (rc3, L.procs["polite"].stopped_by) == (-signal.SIGINT, "SIGINT")
+    assert L.leftovers() == []
+    ros_graph.expected_exit.update(stubborn={-signal.SIGTERM}, deaf={-signal.SIGKILL}, polite={-signal.SIGINT})
+
+
+# ---------------------------------------------------------------------------------------------
+# (b) `flip record` writes an MCAP rosbag2 that rosbags reads back with the custom types
+def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    out = tmp_path / "rec"
+    topics = ["/motor_command", "/contact_events", "/fslip/reference", "/robot_description", "/chatter"]
+    ros_graph.start("recorder", [sys.executable, str(FLIP), "record", *topics, "--out", str(out)])
+    tn = ros_graph.test_node
+    status = tn.collect(String, "/flip_recorder/status", QoSProfile(depth=10))
+    # the contract topics are subscribed at start-up (types and QoS from docs/architecture.md)
+    ros_graph.wait_ready(nodes=["flip_recorder"],
+                         topics={t: (0, 1) for t in topics if t != "/chatter"})
+
+    n = tn.node
+    p_cmd = n.create_publisher(MotorCommand, "/motor_command", BEST_EFFORT)
+    p_ev = n.create_publisher(ContactEvent, "/contact_events", latched(10))
+    p_ref = n.create_publisher(FlipReference, "/fslip/reference", latched(5))
+    p_desc = n.create_publisher(String, "/robot_description", latched(1))
+    p_chat = n.create_publisher(String, "/chatter", 10)   # not in the contract: type+QoS from the graph
+    pubs = [p_cmd, p_ev, p_ref, p_desc, p_chat]
+    tn.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs), what="recorder matched")
+
+    for i in range(5):
+        p_cmd.publish(MotorCommand(step=100 + i, name=MOTORS, effort=[float(i)] * 11, compute_time_us=50.0 + i))
+    for ev in (ContactEvent.LIFT_OFF, ContactEvent.TOUCH_DOWN):
+        e = ContactEvent(step=7 + ev, event=ev, domain=2 + ev, centroidal_pitch_momentum=-31.5)
+        e.pelvis_pose.position.z = 1.25
+        p_ev.publish(e)
+    ref = FlipReference(plan_id=3, domain=FlipReference.DOMAIN_FLIGHT, t=[0.0, 0.1, 0.2],
+                        output_names=["H_pitch", "L"], value=[1.0, 0.9, 2.0, 0.95, 3.0, 1.0],
+                        d_value=[0.0] * 6, dd_value=[0.0] * 6, parameter_names=["T1"], parameter_values=[0.3],
+                        flight_time=0.55, rotation_to_go=-2 * math.pi, solve_time=0.8, iterations=42)
+    p_ref.publish(ref)
+    p_desc.publish(String(data="<mujoco model='cassie'/>"))
+    for i in range(3):
+        p_chat.publish(String(data=f"hello {i}"))
+
+    expect = {"/motor_command": 5, "/contact_events": 2, "/fslip/reference": 1, "/robot_description": 1,
+              "/chatter": 3}
+
+    def recorded_all():
+        if not status:
+            return False
+        counts = json.loads(status[-1].data)["counts"]
+        return all(counts.get(t, 0) >= k for t, k in expect.items())
+    # best effort may drop on a loaded machine: resend MotorCommands until the recorder has 5
+    def wait_cmds():
+        counts = json.loads(status[-1].data)["counts"] if status else {}
+        if counts.get("/motor_command", 0) < 5:
+            p_cmd.publish(MotorCommand(step=200, name=MOTORS, effort=[9.0] * 11, compute_time_us=1.0))
+        return recorded_all()
+    tn.spin_until(wait_cmds, timeout=30, what=f"recorder status reaching {expect}")
+
+    rc = ros_graph.launcher.stop("recorder")
+    assert rc == 0, ros_graph.launcher.procs["recorder"].log_tail()
+
+    bag = out / "bag"
+    assert (bag / "metadata.yaml").exists()
+    assert list(bag.glob("*.mcap")), list(bag.iterdir())
+    assert "storage_identifier: mcap" in (bag / "metadata.yaml").read_text()
+
+    # read back with a typestore built ONLY from the definitions stored in the bag
+    with Reader(bag) as reader:
+        store = get_typestore(Stores.ROS2_JAZZY)
+        defs = {}
+        for c in reader.connections:
+            if c.msgtype.startswith("flip_msgs/"):
+                assert "std_msgs/Header header" in c.msgdef.data and "MSG: std_msgs/Header" in c.msgdef.data
+                defs.update(get_types_from_msg(c.msgdef.data, c.msgtype))
+        store.register(defs)
+        types = {c.topic: c.msgtype for c in reader.connections}
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+        got: dict[str, list] = {}
+        for c, t, raw in reader.messages():
+            got.setdefault(c.topic, []).append((t, store.deserialize_cdr(raw, c.msgtype)))
+    assert types["/motor_command"] == "flip_msgs/msg/MotorCommand"
+    assert types["/chatter"] == "std_msgs/msg/String"
+    assert qos["/contact_events"][0].durability.name == "TRANSIENT_LOCAL"
+    assert qos["/motor_command"][0].reliability.name == "BEST_EFFORT"
+    for t, k in expect.items():
+        assert len(got[t]) >= k, (t, len(got[t]))
+
+    cmds = [m for _, m in got["/motor_command"] if m.step >= 100 and m.step < 200]
+    assert [m.step for m in cmds] == sorted(m.step for m in cmds)
+    assert all(list(m.name) == MOTORS and len(m.effort) == 11 for m in cmds)
+    assert {m.step for m in cmds} <= set(range(100, 105))
+    evs = [m for _, m in got["/contact_events"]]
+    assert [e.event for e in evs] == [ContactEvent.LIFT_OFF, ContactEvent.TOUCH_DOWN]
+    assert evs[0].pelvis_pose.position.z == 1.25 and evs[1].centroidal_pitch_momentum == -31.5
+    r = got["/fslip/reference"][0][1]
+    assert (r.plan_id, r.domain, list(r.output_names), r.iterations) == (3, 2, ["H_pitch", "L"], 42)
+    assert np.allclose(r.value, ref.value) and r.rotation_to_go == pytest.approx(-2 * math.pi)
+    assert got["/robot_description"][0][1].data == "<mujoco model='cassie'/>"
+    assert [m.data for _, m in got["/chatter"]] == ["hello 0", "hello 1", "hello 2"]
+    # log time is the wall-clock receive time (ns since the epoch, within this test's lifetime)
+    import time
+    for t, _ in got["/chatter"]:
+        assert abs(t * 1e-9 - time.time()) < 600
+
+    # and the project's reader gives arrays
+    from flip_tools.bag import load_bag
+    data = load_bag(bag)
+    assert data["/motor_command"]["effort"].shape[1] == 11
+    assert data["/fslip/reference"]["refs"][0]["value"].shape == (3, 2)
+    assert list(data["/contact_events"]["event"]) == [0, 1]
+
+
+# ---------------------------------------------------------------------------------------------
+# (c) summary / verdict from a synthetic bag written with rosbags
+def test_summary_frontflip_landed(tmp_path):
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "bag", rotation_deg=360.0, final_z=0.9)
+    s = summarize_bag(tmp_path / "bag", kind="frontflip")
+    assert s["outcome"] == "landed", s
+    assert s["net_rotation_deg"] == pytest.approx(360.0, abs=1.0)
+    assert s["net_rotation_integrated_deg"] == pytest.approx(360.0, abs=5.0)
+    assert s["final_tilt_deg"] < 1.0 and s["final_height_above_ground_m"] == pytest.approx(0.9, abs=1e-3)
+    assert s["at_rest"] is True
+    assert s["flight_time_s"] == pytest.approx(0.6, abs=2e-3)
+    assert s["forward_distance_m"] == pytest.approx(0.4, abs=1e-3)
+    assert s["apex_pelvis_z_m"] == pytest.approx(1.0 + 9.81 * 0.6 ** 2 / 8, abs=5e-3)
+    assert s["sim_duration_s"] == pytest.approx(1.0 + 0.3 + 0.6 + 0.4 + 1.5, abs=0.01)
+    assert s["real_time_factor"] == pytest.approx(0.5, rel=1e-3)
+    assert 100 <= s["tsc_tick_us"]["median"] <= 200 and s["tsc_tick_us"]["p99"] >= 197
+    assert s["peak_flywheel_rpm"] > 0 and s["peak_flywheel_torque_nm"] > 0
+    assert s["peak_motor_torque_nm"]["right_foot"] == pytest.approx(9.0)
+    assert s["planner"]["solve_time_s"] == [0.42]
+    assert s["checks"]["only_feet_touch_ground"]["ok"] is True       # no BODY_CONTACT event
+    assert s["unverified"] == []
+    json.dumps(s)  # serialisable as is
+
+
+def test_summary_body_contact_and_unknown(tmp_path):
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    # upright at the end, but a knee touched the ground at landing: not a landing
+    write_flip_bag(tmp_path / "knee", rotation_deg=360.0, body_contact_at=2.0)
+    s = summarize_bag(tmp_path / "knee", kind="frontflip")
+    assert s["outcome"] == "body_contact"
+    assert s["checks"]["only_feet_touch_ground"] == {"ok": False, "contacts": [{"t": 2.0, "bodies": "left_knee"}],
+                                                     "note": "BODY_CONTACT events after the first lift-off"}
+    # no /contact_events in the bag: the summary says it cannot tell, it does not guess
+    write_flip_bag(tmp_path / "noev", rotation_deg=360.0, contact_events=False)
+    s = summarize_bag(tmp_path / "noev", kind="frontflip")
+    assert s["checks"]["only_feet_touch_ground"]["ok"] is None
+    assert "only_feet_touch_ground" in s["unverified"] and s["flight_time_s"] is None
+    assert s["outcome"] == "landed"      # decided on what the bag does show
+
+
+def test_summary_backflip_sign_and_fell(tmp_path):
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "back", rotation_deg=-360.0, final_z=0.9)
+    s = summarize_bag(tmp_path / "back", kind="backflip")
+    assert s["outcome"] == "landed" and s["net_rotation_deg"] == pytest.approx(-360.0, abs=1.0)
+    # the same backflip judged as a frontflip is not a landing
+    assert summarize_bag(tmp_path / "back", kind="frontflip")["outcome"] != "landed"
+
+    write_flip_bag(tmp_path / "fell", rotation_deg=360.0, final_z=0.9, final_tilt_deg=90.0)
+    s = summarize_bag(tmp_path / "fell", kind="frontflip")
+    assert s["outcome"] == "fell", s
+    assert s["final_tilt_deg"] == pytest.approx(90.0, abs=1.0)
+    assert s["checks"]["final_tilt"]["ok"] is False
+
+
+def test_plots_from_synthetic_bag(tmp_path):
+    from flip_tools.plots import plot_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "bag", rotation_deg=-360.0)
+    files = plot_bag(tmp_path / "bag", tmp_path)
+    assert files and all(Path(f).stat().st_size > 1000 for f in files)
+
+
+# ---------------------------------------------------------------------------------------------
+# `flip request` and `flip run` end to end, against the stand-in nodes
+def _stand_in_exes() -> list[str]:
+    py = sys.executable
+    nodes = REPO / "tests" / "nodes"
+    return ["--exe", f"sim={py} {nodes / 'fake_sim_node.py'}",
+            "--exe", f"planner={py} {nodes / 'fake_planner_node.py'}",
+            "--exe", f"tsc={py} {nodes / 'fake_tsc_node.py'}"]
+
+
+def _live_processes_of_domain(domain: int) -> list[str]:
+    """Processes of this repo still running in a ROS domain (via /proc/<pid>/environ)."""
+    left = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            env = (d / "environ").read_bytes().split(b"\0")
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        if stat[stat.rfind(")") + 2] == "Z":
+            continue
+        if f"ROS_DOMAIN_ID={domain}".encode() in env and str(REPO) in cmd:
+            left.append(f"{d.name}: {cmd}")
+    return left
+
+
+def test_flip_request_cli(ros_graph):
+    ros_graph.start("planner", stand_in("fake_planner_node.py"))
+    ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
+    base = [sys.executable, str(FLIP), "request", "--domain", str(ros_graph.domain_id), "--timeout", "60"]
+    r = subprocess.run(base + ["frontflip", "--apex", "0.5"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    resp = json.loads(r.stdout)
+    assert resp["accepted"] is True and resp["plan_id"] == 1 and resp["liftoff_pitch_rate"] > 0
+    r = subprocess.run(base + ["backflip", "--apex", "5"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and json.loads(r.stdout)["reason"]
+
+
+def test_flip_run_end_to_end_with_stand_ins(tmp_path):
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, str(FLIP), "run", "backflip", "--out", str(out), "--distance", "0.3",
+                        *_stand_in_exes()], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["outcome"] == "landed" and s["net_rotation_deg"] == pytest.approx(-360, abs=1)
+    assert s["response"]["accepted"] is True
+    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
+                                                                      "tsc": 0}
+    assert s["processes"]["sim"]["stopped_by"] == "exited"          # its duration ended the run
+    assert s["topics"]["/fslip/reference"] == 3 and s["topics"]["/contact_events"] == 2
+    assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
+    run = json.loads((out / "run.json").read_text())
+    assert run["sim_params"]["mode"] == "lockstep" and run["sim_params"]["scenario"] == "flat"
+    assert _live_processes_of_domain(run["ros_domain_id"]) == []
+
+
+def test_flip_run_rejected_and_interrupted(tmp_path):
+    # rejected request: exit 2, reason printed, everything stopped
+    out = tmp_path / "rej"
+    r = subprocess.run([sys.executable, str(FLIP), "run", "frontflip", "--apex", "5", "--out", str(out),
+                        *_stand_in_exes()], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "request rejected: apex_height" in r.stdout
+    s = json.loads((out / "summary.json").read_text())
+    assert s["outcome"] == "rejected"
+    assert all(p["returncode"] == 0 for p in s["processes"].values())
+    dom = json.loads((out / "run.json").read_text())["ros_domain_id"]
+    assert _live_processes_of_domain(dom) == []
+
+    # Ctrl-C in the middle of a run: exit 130, every node stopped, the bag closed and readable
+    out = tmp_path / "int"
+    p = subprocess.Popen([sys.executable, str(FLIP), "run", "frontflip", "--out", str(out), "--duration", "1000",
+                          *_stand_in_exes()], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in p.stderr:
+            if "accepted (plan" in line:
+                break
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130
+    s = json.loads((out / "summary.json").read_text())
+    assert s["topics"]["/clock"] > 0 and all(r["returncode"] == 0 for r in s["processes"].values())
+    dom = json.loads((out / "run.json").read_text())["ros_domain_id"]
+    assert _live_processes_of_domain(dom) == []

@@ -1,0 +1,111 @@
+"""Domain switching, references and state conversion of tsc_controller (no ROS)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cassie_flip_sim.model import PinocchioMap, export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from tsc_controller import Controller, Domain, SampledReference, StateConverter, state_from_ros
+from tsc_controller.dynamics import Dynamics
+
+
+def test_sampled_reference_interpolates_and_clamps():
+    t = np.array([0.0, 0.1, 0.2])
+    val = np.array([[0.0, 1.0], [1.0, 2.0], [2.0, 4.0]])
+    r = SampledReference(Domain.JUMPING, t, ["a", "b"], val.ravel(), 2 * val, 3 * val, start_time=5.0)
+    s = r.sample(0.05)
+    assert s["a"] == pytest.approx((0.5, 1.0, 1.5)) and s["b"] == pytest.approx((1.5, 3.0, 4.5))
+    assert r.sample(-1.0)["b"][0] == 1.0 and r.sample(9.0)["b"][0] == 4.0
+    msg = SimpleNamespace(domain=1, t=list(t), output_names=["a", "b"], value=list(val.ravel()),
+                          d_value=[], dd_value=[], start_time=SimpleNamespace(sec=5, nanosec=500_000_000),
+                          plan_id=3, parameter_names=["T1"], parameter_values=[0.2])
+    m = SampledReference.from_msg(msg)
+    assert m.start_time == 5.5 and m.plan_id == 3 and m.parameters == {"T1": 0.2}
+    assert m.sample(0.1)["b"] == (2.0, 0.0, 0.0)
+
+
+def test_state_converter_matches_pinocchio_map():
+    sim = Simulator()
+    dyn = Dynamics(export_mjcf())
+    rng = np.random.default_rng(0)
+    sim.data.qvel[:] = rng.normal(0, 0.5, sim.model.nv)
+    sim.data.qpos[3:7] = [0.9, 0.1, -0.2, 0.3]
+    sim.data.qpos[3:7] /= np.linalg.norm(sim.data.qpos[3:7])
+    import mujoco
+    mujoco.mj_forward(sim.model, sim.data)
+    q, v = StateConverter(dyn).from_simulator(sim)
+    q_ref, v_ref = PinocchioMap(sim.model, dyn.model).to_pin(sim.data.qpos, sim.data.qvel)
+    assert np.allclose(v, v_ref, atol=1e-12)
+    for jid in range(1, dyn.model.njoints):   # quaternions up to sign
+        a, n = dyn.model.idx_qs[jid], dyn.model.nqs[jid]
+        assert np.allclose(q[a:a + n], q_ref[a:a + n], atol=1e-9) or np.allclose(q[a:a + n], -q_ref[a:a + n], atol=1e-9)
+    # the message adapter (duck-typed JointState / Odometry)
+    p, quat = sim.pelvis_pose()
+    lin, ang = sim.pelvis_twist("local")
+    vec = lambda x: SimpleNamespace(x=x[0], y=x[1], z=x[2])  # noqa: E731
+    odom = SimpleNamespace(pose=SimpleNamespace(pose=SimpleNamespace(
+        position=vec(p), orientation=SimpleNamespace(x=quat[1], y=quat[2], z=quat[3], w=quat[0]))),
+        twist=SimpleNamespace(twist=SimpleNamespace(linear=vec(lin), angular=vec(ang))))
+    js = SimpleNamespace(name=sim.joint_names, position=list(sim.joint_positions()), velocity=list(sim.joint_velocities()))
+    q2, v2 = state_from_ros(StateConverter(dyn), js, odom)
+    assert np.allclose(q2, q) and np.allclose(v2, v)
+
+
+def _run(ctl, sim, t_end, on_tick=None):
+    sc = StateConverter(ctl.dyn)
+    doms = []
+    while sim.time < t_end - 1e-9:
+        if on_tick:
+            on_tick(sim.time)
+        for ev in sim.pop_events():
+            ctl.on_contact_event(int(ev.kind), ev.time)
+        q, v = sc.from_simulator(sim)
+        u, info = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        doms.append(info["domain"])
+    return np.array(doms)
+
+
+def test_reference_without_liftoff_falls_back_to_standing():
+    """A JUMPING reference that ends without lift-off (a plan that is too weak, or a late/stale one)
+    returns the robot to the standing outputs instead of leaving it on the last sample."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    z0 = sim.pelvis_pose()[0][2]
+    ts = np.linspace(0, 0.6, 301)
+    sent = []
+
+    def tick(t):
+        if not sent and t >= 0.5:
+            Ls = ctl.cfg.L_stand
+            val = np.c_[Ls - 0.05 * np.sin(np.pi * ts / 0.6) ** 2, np.zeros_like(ts)]
+            ctl.set_reference(SampledReference(Domain.JUMPING, ts, ["L", "H_pitch"], val, start_time=0.6))
+            sent.append(1)
+    doms = _run(ctl, sim, 2.5, tick)
+    assert Domain.JUMPING in doms and doms[-1] == Domain.STANDING
+    assert Domain.FLIGHT not in doms
+    assert abs(sim.pelvis_pose()[0][2] - z0) < 0.01
+
+
+def test_stale_reference_is_ignored():
+    """A JUMPING reference whose time window has already passed never starts a jump."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    ctl.set_reference(SampledReference(Domain.JUMPING, [0.0, 0.1], ["L"], [0.5, 0.5], start_time=-1.0))
+    doms = _run(ctl, sim, 0.3)
+    assert np.all(doms == Domain.STANDING)
+
+
+def test_late_reference_is_not_joined_midway():
+    """A JUMPING reference that arrives after its start time (planner or transport late) is dropped:
+    the robot keeps standing rather than jumping into the middle of the plan."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    ts = np.linspace(0, 1.0, 101)
+    sent = []
+
+    def tick(t):
+        if not sent and t >= 0.2:
+            ctl.set_reference(SampledReference(Domain.JUMPING, ts, ["L"], np.full(101, 0.7), start_time=0.1))
+            sent.append(1)
+    doms = _run(ctl, sim, 0.4, tick)
+    assert np.all(doms == Domain.STANDING)
+    assert Domain.JUMPING not in ctl.refs

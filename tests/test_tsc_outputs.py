@@ -1,0 +1,67 @@
+"""Output Jacobians and drift terms (paper §V-A outputs, differentiated for §V-B) by finite differences
+along q(t) = q (+) t v with vdot = 0:  d/dt h(q) = J v,  d/dt (J v) = drift."""
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from cassie_flip_sim.model import export_mjcf
+from test_tsc_dynamics import random_state
+from tsc_controller import Controller
+
+
+@pytest.fixture(scope="module")
+def ctl():
+    return Controller(export_mjcf())
+
+
+def _outputs(c):
+    return ([c.o_H, c.o_L, c.o_com, c.o_pel, c.o_Hfw, c.o_j_pre, c.o_j_post] + c.o_Lleg + c.o_beta + c.o_toe)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_output_jacobians_and_drifts(ctl, seed):
+    dyn = ctl.dyn
+    rng = np.random.default_rng(seed)
+    q, v = random_state(dyn, rng, False)
+    eps = 1e-6
+    qp, qm = pin.integrate(dyn.model, q, eps * v), pin.integrate(dyn.model, q, -eps * v)
+    for o in _outputs(ctl):
+        dyn.update(q, v)
+        y, J, drift, ydot = o.evaluate(dyn)
+        y, J, drift = np.array(y), np.array(J), np.array(drift)
+        dyn.update(qp, v)
+        yp, Jp_, _, _ = o.evaluate(dyn)
+        yp, Jp_ = np.array(yp), np.array(Jp_)
+        dyn.update(qm, v)
+        ym, Jm, _, _ = o.evaluate(dyn)
+        ym, Jm = np.array(ym), np.array(Jm)
+        fd_drift = (Jp_ @ v - Jm @ v) / (2 * eps)
+        tol = 1e-5 * max(1.0, np.abs(fd_drift).max())
+        assert np.abs(fd_drift - drift).max() < tol, (o.name, fd_drift, drift)
+        if o.degree == 2:
+            fd_vel = (yp - ym) / (2 * eps)
+            assert np.abs(fd_vel - J @ v).max() < 1e-6 * max(1.0, np.abs(fd_vel).max()), o.name
+            assert np.allclose(ydot, J @ v)
+        else:
+            assert np.allclose(y, J @ v)
+
+
+def test_momentum_outputs_match_definitions(ctl):
+    """H_pitch = world-y angular momentum about the COM (as the simulator reports it);
+    H_flywheel = I_axis * world-y angular velocity of the wheel."""
+    from cassie_flip_sim.simulator import Simulator
+    from tsc_controller import StateConverter
+    sim = Simulator()
+    rng = np.random.default_rng(4)
+    sim.data.qvel[:] = rng.normal(0, 1.0, sim.model.nv)
+    import mujoco
+    mujoco.mj_forward(sim.model, sim.data)
+    q, v = StateConverter(ctl.dyn).from_simulator(sim)
+    ctl.dyn.update(q, v)
+    H = ctl.o_H.evaluate(ctl.dyn)[0][0]
+    assert H == pytest.approx(sim.centroidal_pitch_momentum(), rel=1e-9, abs=1e-9)
+    fw = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "flywheel")
+    w = np.zeros(6)
+    mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, fw, w, 0)   # world frame
+    I_axis = sim.model.body_inertia[fw][1]
+    assert ctl.o_Hfw.evaluate(ctl.dyn)[0][0] == pytest.approx(I_axis * w[1], rel=1e-9, abs=1e-9)

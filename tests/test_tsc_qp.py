@@ -1,0 +1,107 @@
+"""The TSC QP (paper eq. (QP)) respects every bound on random states: torque-speed envelope,
+unilateral normal force, friction pyramid; ProxQP and DAQP agree."""
+import numpy as np
+import pytest
+
+from cassie_flip_sim.model import export_mjcf
+from cassie_flip_sim.motor_limits import torque_bounds
+from test_tsc_dynamics import random_state
+from tsc_controller import Controller
+from tsc_controller.limits import grf_constraints
+from tsc_controller.tsc import ConstrainedDynamics, Desired
+
+
+@pytest.fixture(scope="module")
+def controllers():
+    x = export_mjcf()
+    return {s: Controller(x, solver=s) for s in ("proxqp", "daqp")}
+
+
+def _random_task(ctl, rng):
+    """Standing outputs with random desired offsets (so the QP is pushed against its bounds)."""
+    dyn = ctl.dyn
+    outs = ctl.ground_outputs
+    des = []
+    for o in outs:
+        y = o.evaluate(dyn)[0]
+        scale = {"H_pitch": 5.0, "L": 0.1, "com": 0.1, "pelvis": 0.3}[o.name]
+        des.append(Desired(y + rng.normal(0, scale, len(y)), rng.normal(0, 1, len(y)), rng.normal(0, 20, len(y))))
+    return outs, des
+
+
+@pytest.mark.parametrize("solver", ["proxqp", "daqp"])
+def test_qp_respects_bounds(controllers, solver):
+    ctl = controllers[solver]
+    dyn = ctl.dyn
+    C, c = grf_constraints(2, ctl.cfg.mu, ctl.cfg.f_min)
+    rng = np.random.default_rng(5)
+    n_solved = 0
+    for trial in range(25):
+        q, v = random_state(dyn, rng, True)
+        v *= 0.5
+        dyn.update(q, v)
+        lb, ub = torque_bounds(v[dyn.motor_v])
+        outs, des = _random_task(ctl, rng)
+        res = ctl.tsc.solve(outs, des, True, lb, ub)
+        u = res.u
+        assert np.all(u >= lb - 1e-6) and np.all(u <= ub + 1e-6), (trial, u, lb, ub)
+        F = ConstrainedDynamics(dyn, True).A @ u + ConstrainedDynamics(dyn, True).b
+        assert np.allclose(F, res.forces)
+        if res.status == "solved":
+            n_solved += 1
+            viol = C @ F[:10] - c
+            assert viol.max() < 1e-4 * max(1.0, np.abs(F).max()), (trial, viol.max())
+            # unilateral, friction explicitly
+            for k in range(2):
+                f = F[5 * k: 5 * k + 5]
+                assert f[2] >= ctl.cfg.f_min - 1e-4 and f[4] >= ctl.cfg.f_min - 1e-4
+                assert abs(f[1]) <= ctl.cfg.mu * f[2] + 1e-4 and abs(f[3]) <= ctl.cfg.mu * f[4] + 1e-4
+                assert abs(f[0]) <= ctl.cfg.mu * (f[2] + f[4]) + 1e-4
+        else:
+            assert "box_only" in res.status or "zero" in res.status
+    assert n_solved >= 15
+
+
+def test_solvers_agree(controllers):
+    a, b = controllers["proxqp"], controllers["daqp"]
+    rng = np.random.default_rng(9)
+    for trial in range(10):
+        q, v = random_state(a.dyn, rng, True)
+        v *= 0.3
+        a.dyn.update(q, v)
+        b.dyn.update(q, v)
+        lb, ub = torque_bounds(v[a.dyn.motor_v])
+        r2 = np.random.default_rng(trial)
+        outs, des = _random_task(a, r2)
+        ra = a.tsc.solve(outs, des, True, lb, ub)
+        r2 = np.random.default_rng(trial)
+        outs, des = _random_task(b, r2)
+        rb = b.tsc.solve(outs, des, True, lb, ub)
+        if ra.status == rb.status == "solved":
+            assert np.allclose(ra.u, rb.u, atol=1e-2 * max(1.0, np.abs(ra.u).max())), (trial, ra.u - rb.u)
+
+
+def test_flight_qp_respects_torque_bounds(controllers):
+    ctl = controllers["proxqp"]
+    dyn = ctl.dyn
+    rng = np.random.default_rng(2)
+    for trial in range(10):
+        q, v = random_state(dyn, rng, False)
+        dyn.update(q, v)
+        lb, ub = torque_bounds(v[dyn.motor_v])
+        outs = [ctl.o_Hfw] + ctl.o_Lleg + [ctl.o_j_pre]
+        des = [Desired(o.evaluate(dyn)[0] + rng.normal(0, 0.5, o.dim)) for o in outs]
+        res = ctl.tsc.solve(outs, des, False, lb, ub)
+        assert res.status == "solved"
+        assert np.all(res.u >= lb - 1e-6) and np.all(res.u <= ub + 1e-6)
+
+
+def test_torque_limits_match_simulator_envelope():
+    from tsc_controller.limits import TorqueLimits
+    rng = np.random.default_rng(1)
+    tl = TorqueLimits()
+    for _ in range(200):
+        w = rng.normal(0, 30, 11) * rng.integers(0, 2, 11)
+        lb, ub = tl.bounds(w)
+        lb2, ub2 = torque_bounds(w)
+        assert np.allclose(lb, lb2) and np.allclose(ub, ub2)
