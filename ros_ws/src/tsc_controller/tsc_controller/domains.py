@@ -20,10 +20,11 @@ Reference time: JUMPING from the message's start_time, FLIGHT / LANDING from the
 event (the paper plans them at those events).  Missing or late references never leave the robot
 without a command: JUMPING without lift-off past its end (+ ``grace``) falls back to STANDING, FLIGHT
 without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
-the standing outputs.
+the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -118,6 +119,22 @@ def quintic(y0, y1, T, s, v0=None):
     return y0 + p * d + (max(s, 0.0) + T * r) * v0, dp * d + (1.0 + T * dr) * v0, ddp * d + T * ddr * v0
 
 
+def leg_catch(L0, v0, L1, t, decel=15.0, L_min=0.50, rise_time=1.5):
+    """Leg length after a touch-down at speed v0 < 0: constant deceleration a over the stroke
+    d = v0^2 / (2 a) (d capped at L0 - L_min, a raised to match), then a min-jerk rise to L1 over
+    ``rise_time``.  Returns (L, Ldot, Lddot) at time t after touch-down.  A quintic that starts with
+    the touch-down velocity either overshoots the leg stroke or ends with a deceleration above g
+    that throws the robot off the ground again; this profile does neither."""
+    if v0 >= 0.0:
+        return quintic(np.array([L0]), np.array([L1]), rise_time, t)
+    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
+    a = v0 * v0 / (2.0 * d)
+    tc = -v0 / a
+    if t < tc:
+        return np.array([L0 + v0 * t + 0.5 * a * t * t]), np.array([v0 + a * t]), np.array([a])
+    return quintic(np.array([L0 - d]), np.array([L1]), rise_time, t - tc)
+
+
 DEFAULT_GAINS = {
     # name: (weight, kp, kd)
     "H_pitch": (1.0, 10.0, 0.0),
@@ -141,12 +158,15 @@ class ControllerConfig:
     reg: float = 1e-4
     mu: float = 0.6
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
+    cop_margin: float = 0.2           # centre of pressure kept this fraction of the foot length from its ends
     rigid_springs: bool = True
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
     grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
+    catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
+    L_min: float = 0.50               # m, shortest leg the fallback landing may use
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
 
@@ -165,7 +185,7 @@ class Controller:
             setattr(cfg, k, val)
         self.cfg = cfg
         self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs)
-        self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min)
+        self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
         self.limits = TorqueLimits()
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
         g = cfg.gains
@@ -188,6 +208,8 @@ class Controller:
         self._flight = None
         self.u_prev = np.zeros(self.dyn.nu)
         self.ticks = 0
+        self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
+        self._pitch_raw = None
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
@@ -212,9 +234,8 @@ class Controller:
     def _switch(self, t):
         ev, self._pending_event = self._pending_event, None
         d = self.domain
-        if ev is not None and ev[0] == LIFT_OFF and d in (Domain.STANDING, Domain.LANDING):
-            self._enter(Domain.FLIGHT, ev[1])      # a bounce: no ground model while airborne
-            return
+        # A LIFT_OFF while landing or standing is a rebound of a few ms, not a flight: the ground
+        # outputs stay (switching to the flight posture hold there makes the landing chatter).
         if d == Domain.STANDING:
             r = self.refs.get(Domain.JUMPING)
             if r is not None and r.start_time <= t:
@@ -268,7 +289,8 @@ class Controller:
         T, dt = self.cfg.blend_time, t - s["t0"]
         return {
             "H_pitch": Desired(np.zeros(1), np.zeros(1), np.zeros(1)),
-            "L": Desired(*quintic(s["L0"], s["L1"], T, dt, s["Ld0"])),
+            "L": Desired(*leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), dt,
+                                    self.cfg.catch_decel, self.cfg.L_min)),
             "com": Desired(*quintic(s["c0"], s["c1"], T, dt, s["cd0"])),
             "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
         }
@@ -346,7 +368,7 @@ class Controller:
         H_pitch = float(dyn.Ag[4] @ dyn.v)
         pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
         I_rest = float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
-        theta = float(self.o_pel.evaluate(dyn)[0][1])
+        theta = self.pitch
         th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
         om_cl = om_des - self.cfg.k_theta * (theta - th_des)
         return H_pitch - om_cl * I_rest
@@ -364,12 +386,25 @@ class Controller:
             return True, *self._ground_task(t, r, tau)
         return False, *self._flight_task(t)
 
+    def _update_pitch(self):
+        """Unwrapped sagittal pitch of the pelvis: the angle of its x axis in the world x-z plane,
+        atan2(-R_20, R_00), continued across ±pi from tick to tick (a somersault turns it by ±2pi;
+        the ZYX Euler pitch is singular at ±pi/2)."""
+        R = self.dyn.data.oMi[self.dyn.base_jid].rotation
+        raw = math.atan2(-R[2, 0], R[0, 0])
+        if self._pitch_raw is None:
+            self.pitch = raw
+        else:
+            self.pitch += (raw - self._pitch_raw + math.pi) % (2 * math.pi) - math.pi
+        self._pitch_raw = raw
+
     # -------------------------------------------------------------- the tick
     def compute(self, q, v, t):
         """One TSC tick: returns (u (11,), info dict)."""
         t0 = time.perf_counter()
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
+        self._update_pitch()
         self._switch(t)
         if self.t_enter is None:
             self.t_enter = t

@@ -14,8 +14,12 @@ import numpy as np
 ROWS_PER_FOOT = 5
 
 
-def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0):
-    """(C, c) with C F <= c for the stacked foot forces (5 per foot, ordered as the contact rows)."""
+def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_margin: float = 0.0):
+    """(C, c) with C F <= c for the stacked foot forces (5 per foot, ordered as the contact rows).
+
+    ``cop_margin`` in [0, 0.5) keeps the centre of pressure that fraction of the foot length away
+    from the toe and the heel (the flat-foot contact model stops being true once a compliant foot
+    rocks onto one edge under a landing load)."""
     rows, rhs = [], []
     for k in range(n_feet):
         o = ROWS_PER_FOOT * k
@@ -28,6 +32,9 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0):
             return r
         rows += [row([(tn, -1.0)]), row([(hn, -1.0)])]
         rhs += [-f_min, -f_min]
+        if cop_margin > 0.0:      # toe and heel each carry >= cop_margin of the foot's load
+            rows += [row([(tn, cop_margin - 1.0), (hn, cop_margin)]), row([(hn, cop_margin - 1.0), (tn, cop_margin)])]
+            rhs += [0.0, 0.0]
         for i, n in ((tt, tn), (ht, hn)):
             rows += [row([(i, 1.0), (n, -mu)]), row([(i, -1.0), (n, -mu)])]
             rhs += [0.0, 0.0]

@@ -130,12 +130,13 @@ SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP}
 class TSC:
     """The torque-only QP of eq. (QP) over a list of outputs."""
 
-    def __init__(self, dyn, solver: str = "daqp", reg: float = 1e-4, mu: float = 0.6, f_min: float = 1.0):
+    def __init__(self, dyn, solver: str = "daqp", reg: float = 1e-4, mu: float = 0.6, f_min: float = 1.0,
+                 cop_margin: float = 0.0):
         self.dyn = dyn
         self.reg = reg
         self.solver_name = solver
         self._solvers = {}
-        self.C, self.c = grf_constraints(2, mu, f_min)
+        self.C, self.c = grf_constraints(2, mu, f_min, cop_margin)
         self._lo = np.full(len(self.c), -1e20)
         self._w = {}
 

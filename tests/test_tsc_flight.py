@@ -1,0 +1,124 @@
+"""Closed loop without ROS: the flight phase (paper §IV-A, momentum transmission) and the fallback
+landing of tsc_controller on the MuJoCo robot.
+
+The robot is put in the air at a lift-off state (pelvis 0.4 m above standing, rising, whole body
+pitching at 2π/T), with a FLIGHT reference whose pelvis pitch goes from 0 to ±2π with zero rate
+at T (cubic), as fslip_planner.flight builds it.  The flywheel alone must turn the body: total
+pitch momentum stays constant, the pelvis arrives at ±2π with a small rate, and the flywheel
+ends up holding the momentum (eq. (momentumTrans))."""
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from cassie_flip_sim.model import export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from tsc_controller import Controller, Domain, SampledReference, StateConverter
+from tsc_controller.domains import leg_catch
+
+T_FLIGHT = 0.9
+
+
+def launched(sim, sign, T=T_FLIGHT, h=0.4):
+    qpos = sim.standing_qpos.copy()
+    qpos[2] += h
+    vz = (9.81 * T * T / 2 - h) / T                 # lands at standing height after T
+    w = sign * 2 * math.pi / T
+    qvel = np.zeros(sim.model.nv)
+    sim.reset(qpos, qvel, in_contact=False)
+    c, p = sim.com_position(), sim.data.qpos[:3].copy()
+    qvel[0:3] = np.array([0.0, 0.0, vz]) + np.cross([0.0, w, 0.0], p - c)   # rigid rotation about the COM
+    qvel[4] = w                                                             # pelvis pitch rate (local y)
+    sim.reset(qpos, qvel, in_contact=False)
+    return w
+
+
+def flight_reference(sign, w0, T=T_FLIGHT):
+    ts = np.linspace(0.0, T, 200)
+    a2, a3 = np.linalg.solve([[T ** 2, T ** 3], [2 * T, 3 * T ** 2]], [sign * 2 * math.pi - w0 * T, -w0])
+    th = w0 * ts + a2 * ts ** 2 + a3 * ts ** 3
+    dth = w0 + 2 * a2 * ts + 3 * a3 * ts ** 2
+    ddth = 2 * a2 + 6 * a3 * ts
+    return SampledReference(Domain.FLIGHT, ts, ["phi_pitch"], th[:, None], dth[:, None], ddth[:, None],
+                            parameters=dict(flight_time=T, T1=0.75 * T, beta_liftoff=0.0))
+
+
+def run_flight(sign):
+    sim = Simulator()
+    w0 = launched(sim, sign)
+    ctl = Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
+    ctl.set_reference(flight_reference(sign, w0))
+    fw = sim.model.jnt_dofadr[mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_JOINT, "flywheel")]
+    H, fw_speed = [], []
+    while sim.time < 2 * T_FLIGHT:
+        if sim.pop_events():                        # touch-down
+            break
+        q, v = sc.from_simulator(sim)
+        u, info = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        H.append(sim.centroidal_pitch_momentum())
+        fw_speed.append(sim.data.qvel[fw])
+    return dict(sim=sim, ctl=ctl, H=np.array(H), fw=np.array(fw_speed), t_td=sim.time)
+
+
+@pytest.fixture(scope="module", params=[1, -1], ids=["frontflip", "backflip"])
+def flight(request):
+    return request.param, run_flight(request.param)
+
+
+def test_flight_turns_the_body_by_2pi(flight):
+    sign, r = flight
+    assert abs(r["t_td"] - T_FLIGHT) < 0.05                       # touched down when planned
+    assert r["ctl"].pitch == pytest.approx(sign * 2 * math.pi, abs=0.25)   # unwrapped pelvis pitch
+    w_pelvis = r["sim"].pelvis_twist("world")[1][1]
+    assert abs(w_pelvis) < 0.5 * 2 * math.pi / T_FLIGHT           # slowed down for landing
+
+
+def test_flight_conserves_momentum_and_stores_it_in_the_flywheel(flight):
+    sign, r = flight
+    H = r["H"][:-2]                                              # the last step is the impact
+    assert np.ptp(H) < 0.01 * abs(H[0])                           # no external moment in the air
+    # at touch-down the body has stopped turning: the flywheel holds most of the momentum
+    I_fw = r["ctl"].o_Hfw._I
+    assert sign * r["fw"][-1] * I_fw > 0.6 * abs(H[0])
+    assert np.max(np.abs(r["fw"])) < 400.0                        # rad/s: a physical flywheel speed
+
+
+def test_leg_catch_profile():
+    L0, v0, L1 = 0.86, -3.4, 0.86
+    ts = np.linspace(0.0, 3.0, 3001)
+    L, Ld, Ldd = (np.array(x) for x in zip(*[[float(a[0]) for a in leg_catch(L0, v0, L1, t)] for t in ts]))
+    assert L[0] == pytest.approx(L0) and Ld[0] == pytest.approx(v0)
+    assert L.min() >= 0.50 - 1e-9                                 # never below the leg's usable stroke
+    assert np.max(np.abs(np.diff(L))) < 0.01                      # continuous
+    assert np.max(np.abs(np.diff(Ld))) < 0.05
+    assert L[-1] == pytest.approx(L1) and Ld[-1] == pytest.approx(0.0, abs=1e-9)
+    assert Ldd.max() < 9.81 + 15.0 * 3 and Ldd[ts > 0.4].min() > -9.81   # never asks the feet to pull
+
+
+def test_drop_lands_and_stands():
+    """A 0.3 m drop (2.4 m/s at touch-down) in FLIGHT with no reference: the fallback landing catches it
+    and the robot ends standing at its height."""
+    sim = Simulator()
+    qpos = sim.standing_qpos.copy()
+    z0 = qpos[2]
+    qpos[2] += 0.3
+    sim.reset(qpos, None, in_contact=False)
+    ctl = Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    ctl._enter(Domain.FLIGHT, 0.0)
+    zs = []
+    while sim.time < 3.0:
+        for ev in sim.pop_events():
+            ctl.on_contact_event(int(ev.kind), ev.time)
+        q, v = sc.from_simulator(sim)
+        u, _ = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        zs.append(sim.pelvis_pose()[0][2])
+        assert not sim.body_contacts(), f"fell at t={sim.time:.3f}"
+    assert min(zs) > z0 - 0.3
+    assert zs[-1] == pytest.approx(z0, abs=0.01)
+    assert ctl.domain == Domain.STANDING
