@@ -166,6 +166,7 @@ class ControllerConfig:
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
     catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
+    landing_moment: float = 15.0      # N*m, mean pitch moment the fallback landing uses to remove H_pitch
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
@@ -277,18 +278,25 @@ class Controller:
         if self._stand is None:
             mid, yaw = self._feet()
             L0, _, _, Ld0 = self.o_L.evaluate(dyn)
+            # At touch-down the leg has not started to shorten yet (the feet moved with the body until
+            # the impact); once the feet stop, it shortens at the body's sink rate: catch that.
+            Ld0 = np.minimum(Ld0, dyn.hg_lin[2] / dyn.mass)
             if self.cfg.L_stand is None:
                 self.cfg.L_stand = float(L0[0])
             c0, _, _, cd0 = self.o_com.evaluate(dyn)
             p0, _, _, pd0 = self.o_pel.evaluate(dyn)
             # start from the current value and velocity (soft catch after touch-down)
+            H0 = self.o_H.evaluate(dyn)[0]
             self._stand = dict(t0=t, L0=L0.copy(), c0=c0.copy(), p0=p0.copy(), L1=np.array([self.cfg.L_stand]),
                                c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
-                               Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy())
+                               Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy(), H0=H0.copy(),
+                               TH=max(self.cfg.blend_time, abs(float(H0[0])) / self.cfg.landing_moment))
         s = self._stand
         T, dt = self.cfg.blend_time, t - s["t0"]
         return {
-            "H_pitch": Desired(np.zeros(1), np.zeros(1), np.zeros(1)),
+            # the pitch momentum a landing brings (the flywheel's, after a flip) is taken out at a
+            # moment the feet can give (cfg.landing_moment), not at once
+            "H_pitch": Desired(*quintic(s["H0"], np.zeros(1), s["TH"], dt)),
             "L": Desired(*leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), dt,
                                     self.cfg.catch_decel, self.cfg.L_min)),
             "com": Desired(*quintic(s["c0"], s["c1"], T, dt, s["cd0"])),
