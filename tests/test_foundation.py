@@ -57,15 +57,28 @@ def test_flip_msgs_between_processes_and_service(ros_graph):
     # teardown (fixture): SIGINT to every process, each must exit 0, nothing left behind
 
 
-# (d) reserved for the lead: against the real planner_node, a RequestFlip with NaN, a negative
-# apex or an unknown kind gets accepted=false with a reason and the node keeps serving.
-@pytest.mark.skip(reason="(d) to be written by the lead against the real planner_node")
+# (d) the real planner_node: a RequestFlip with NaN, a negative apex or an unknown kind gets
+# accepted=false with a reason, and the node keeps serving (a valid request is then accepted).
 def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
-    # ros_graph.start("planner", [<venv>/bin/planner_node], node_name="planner_node")
-    # ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
-    # for req in (nan apex, apex=-0.1, kind=99): r = test_node.call(...); assert not r.accepted and r.reason
-    # then a valid request is still answered
-    pass
+    planner = str(Path(sys.executable).parent / "planner_node")
+    ros_graph.start("planner", [planner], node_name="planner_node")
+    ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
+    tn = ros_graph.test_node
+    R = RequestFlip.Request
+    bad = {"NaN apex": R(kind=R.BACKFLIP, apex_height=float("nan")),
+           "negative apex": R(kind=R.FRONTFLIP, apex_height=-0.1),
+           "unknown kind": R(kind=99),
+           "unreachable apex": R(kind=R.BACKFLIP, apex_height=6.0)}
+    for what, req in bad.items():
+        r = tn.call(RequestFlip, "/request_flip", req)
+        assert not r.accepted and r.reason, what
+    assert "apex" in tn.call(RequestFlip, "/request_flip", bad["unreachable apex"]).reason
+    ok = tn.call(RequestFlip, "/request_flip", R(kind=R.BACKFLIP))
+    assert ok.accepted, ok.reason
+    assert ok.plan_id == 1 and ok.flight_time > 0 and ok.liftoff_pitch_rate < 0
+    # a second request while that flip is under way is refused cleanly
+    again = tn.call(RequestFlip, "/request_flip", R(kind=R.FRONTFLIP))
+    assert not again.accepted and "under way" in again.reason
 
 
 # ---------------------------------------------------------------------------------------------

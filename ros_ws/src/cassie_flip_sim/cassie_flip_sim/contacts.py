@@ -71,7 +71,7 @@ class ContactDetector:
     """
 
     def __init__(self, in_contact: bool = True, *, lift_off_force: float = 1e-9,
-                 touch_down_force: float = 1.0, lift_off_steps: int = 3, min_flight_steps: int = 10):
+                 touch_down_force: float = 1.0, lift_off_steps: int = 20, min_flight_steps: int = 20):
         self.lift_off_force = lift_off_force
         self.touch_down_force = touch_down_force
         self.lift_off_steps = lift_off_steps

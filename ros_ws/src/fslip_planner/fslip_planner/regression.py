@@ -26,7 +26,6 @@ Polynomials in L (degree 3) are fitted per flywheel variant and written to
 from __future__ import annotations
 
 import json
-import math
 import os
 from dataclasses import dataclass
 from typing import Dict
@@ -139,7 +138,7 @@ class _Kin:
         return float(Iyy)
 
 
-def standing_grid(flywheel="I", n=15, knee_range=(-2.35, -0.80)):
+def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
     """Rows (knee, L, K, D, I, dqk_dL, com_h) over a grid of knee angles (rad)."""
     kin = _Kin(flywheel)
     mj, M, P = kin.mj, kin.M, kin.P
@@ -268,12 +267,13 @@ def compute_all(flywheels=("I", "II", "III"), n=15) -> dict:
     doc = {"description": __doc__.strip().splitlines()[0], "knee_torque_limit": tk,
            "knee_no_load_speed": knee_no_load_speed(), "flywheels": {}}
     for fw in flywheels:
-        doc["flywheels"][fw] = fit(standing_grid(fw, n=n), tk)
+        e = fit(standing_grid(fw, n=n), tk)
+        e["knee_torque_limit"] = tk
+        doc["flywheels"][fw] = e
     return doc
 
 
 if __name__ == "__main__":  # pragma: no cover
-    r = standing_grid("I", n=6)
     np.set_printoptions(precision=4, suppress=True)
-    print(r)
-    print(math.pi)
+    print("knee, L, K, D, I, dqknee/dL, com_h")
+    print(standing_grid("I", n=6))

@@ -158,8 +158,9 @@ class ControllerConfig:
     reg: float = 1e-4
     mu: float = 0.6
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
-    cop_margin: float = 0.2           # centre of pressure kept this fraction of the foot length from its ends
+    cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
     rigid_springs: bool = True
+    spring_rate_zero: bool = True     # with rigid springs, feed the controller zero spring rates
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
     grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
@@ -410,6 +411,12 @@ class Controller:
     def compute(self, q, v, t):
         """One TSC tick: returns (u (11,), info dict)."""
         t0 = time.perf_counter()
+        if self.cfg.rigid_springs and self.cfg.spring_rate_zero:
+            # the QP holds the leaf springs rigid (dynamics module doc); their measured rates are
+            # the leg's ringing, which that model cannot predict: seen through the outputs' J v and
+            # drift terms they make the torques chatter at the spring frequency
+            v = np.array(v, float)
+            v[self.dyn.spring_v] = 0.0
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
         self._update_pitch()

@@ -1,0 +1,67 @@
+"""Flight phase planning (paper §IV): momentum transmission and assistive components.
+
+* θ_des(t), ω̄_des(t) (§IV-A): a cubic with θ(0) = θ₀ (measured pelvis pitch at lift-off, the
+  paper's β^lift-off since the pelvis tracks β on the ground), ω̄(0) = measured pelvis pitch rate,
+  θ(T) = ±2π − β^lift-off (frontflip +, backflip −, hop 0), ω̄(T) = 0; T = flight time recomputed
+  from the measured vertical COM speed.  Output ``phi_pitch`` (unwrapped) with d = ω̄_des and
+  dd = ω̄̇_des; the controller closes eq. (momentumTrans) with it.
+* Leg retraction / tucking (§IV-B): L_des(t) retracts from the lift-off length to ``L_tuck`` by
+  T1/2 and extends back to the landing length (= planned lift-off length) by T1 = ¾ T (quintic
+  segments, zero end velocities/accelerations), then stays.
+* Foot placement (§IV-B): parameter ``beta_liftoff`` in the controller's ``beta_leg`` convention
+  (atan2(r_x, −r_z) of the hip→foot vector, world frame) = −β_FSLIP; the controller drives the
+  leg to −beta_liftoff = +β_FSLIP (foot ahead of the COM, mirroring lift-off) after T1.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import fslip as F
+
+SIGN = {"backflip": -1.0, "frontflip": 1.0, "hop": 0.0}
+
+
+def cubic(y0, v0, y1, v1, T, t):
+    """Cubic Hermite y(t) on [0, T] with y(0)=y0, ẏ(0)=v0, y(T)=y1, ẏ(T)=v1: (y, ẏ, ÿ)."""
+    t = np.clip(np.asarray(t, float), 0.0, T)
+    a0, a1 = y0, v0
+    a2 = (3 * (y1 - y0) - (2 * v0 + v1) * T) / T ** 2
+    a3 = (2 * (y0 - y1) + (v0 + v1) * T) / T ** 3
+    return (a0 + a1 * t + a2 * t ** 2 + a3 * t ** 3, a1 + 2 * a2 * t + 3 * a3 * t ** 2, 2 * a2 + 6 * a3 * t)
+
+
+def min_jerk(y0, y1, T, t):
+    """Quintic rest-to-rest from y0 to y1 over [0, T]: (y, ẏ, ÿ)."""
+    x = np.clip(np.asarray(t, float) / T, 0.0, 1.0)
+    p = x ** 3 * (10 - 15 * x + 6 * x ** 2)
+    dp = 30 * x ** 2 * (1 - x) ** 2 / T
+    ddp = 60 * x * (1 - x) * (1 - 2 * x) / T ** 2
+    d = y1 - y0
+    return y0 + d * p, d * dp, d * ddp
+
+
+def tuck_profile(L_lo, L_tuck, L_land, T1, t):
+    """L_des(t): retract L_lo → L_tuck on [0, T1/2], extend L_tuck → L_land on [T1/2, T1], then hold."""
+    t = np.asarray(t, float)
+    h = 0.5 * T1
+    a = min_jerk(L_lo, L_tuck, h, t)
+    b = min_jerk(L_tuck, L_land, h, t - h)
+    first = t < h
+    return tuple(np.where(first, ai, bi) for ai, bi in zip(a, b))
+
+
+def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=0.6,
+                t1_fraction=0.75, dt=0.002, g=F.G):
+    """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T)."""
+    if kind not in SIGN:
+        raise ValueError(f"unknown kind {kind!r}")
+    T = float(F.flight_time(max(zdot, 0.05), platform, g))
+    T1 = t1_fraction * T
+    theta_T = SIGN[kind] * 2 * math.pi - beta_lo
+    n = max(int(math.ceil(T / dt)), 2) + 1
+    t = np.linspace(0.0, T, n)
+    th = cubic(theta0, omega0, theta_T, 0.0, T, t)
+    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_lo, T1, t)
+    return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)

@@ -1,0 +1,252 @@
+"""Jumping optimisation on the FSLIP (paper §III-B): direct transcription, trapezoidal
+integration, CasADi Opti + IPOPT, free final time.
+
+Decision variables: X = [x, z, ẋ, ż, H] (5×N), U = [F^s, τ, u] (3×N), T (stance duration).
+Constraints (every knot): trapezoidal dynamics; start standing at rest on the nominal leg length
+(F^s = m g, τ = u = 0); L_min ≤ L ≤ L_max (L = r + F^s/K, computed); F^s ≥ 0; F_z ≥ 0; friction
+cone |F_x| ≤ μ F_z; ZMP |u| ≤ F_z l/2; flywheel |τ| ≤ τ_max (see below); leg force
+F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope,
+F^s ≤ F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
+lift-off at the last knot: F_z = F_x = u = 0 (⇔ F^s = τ = u = 0); before that the feet stay loaded,
+F_z ≥ ½ m g ramping to 0 over the last 3 knots (the robot's contact detector must not see an early
+lift-off, e.g. in a free-fall crouch).
+Task (lift-off state): T_flight = (ż + √(ż² + 2 g h_p))/g (= 2ż/g on flat ground);
+θ̇·T_flight = ±2π − 2β (eq. taskEncoding; θ̇ = H/I(L)); COM apex z + ż²/2g + com_h = apex;
+forward distance 2x + ẋ T_flight = d (foot-to-foot, the landing mirroring the lift-off).
+
+Flywheel torque bound: τ is the whole-body pitch torque (Ḣ).  During stance the pelvis follows the
+leg angle β (slowly), so nearly all of Ḣ is absorbed by the flywheel, whose motor gives at most
+195 N·m; the two hip-pitch motors (2 × 195.2 N·m) that pass this torque from the legs to the pelvis
+are not tighter.  Hence |τ| ≤ τ_fw,max.
+Cost: Σ (c₁ L̈² + c₂ u² + c₃ τ²) ΔT (L̈ by second differences of the computed L).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import fslip as F
+
+SIGN = {"backflip": -1.0, "frontflip": 1.0, "hop": 0.0}
+COST = dict(c1=1e-3, c2=1e-2, c3=1e-4)
+IPOPT_OPTS = {"expand": True, "ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 600,
+              "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_strategy": "adaptive"}
+
+
+@dataclass
+class Solution:
+    """Knot trajectories of a solved FSLIP problem."""
+    t: np.ndarray
+    X: np.ndarray          # (N, 5)
+    U: np.ndarray          # (N, 3)
+    L: np.ndarray
+    Fx: np.ndarray
+    Fz: np.ndarray
+    solve_time: float
+    iterations: int
+    status: str
+    params: F.FSLIPParams = field(repr=False, default=None)
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def T(self):
+        return float(self.t[-1])
+
+
+def _collect(opti, sol, Xv, Uv, Tv, p, t0, stats):
+    X = np.array(sol.value(Xv)).T
+    U = np.array(sol.value(Uv)).T
+    T = float(sol.value(Tv))
+    N = X.shape[0]
+    L = np.array([float(F.leg_length(X[k], U[k], p)) for k in range(N)])
+    g = [F.grf(X[k], U[k], p) for k in range(N)]
+    return Solution(np.linspace(0, T, N), X, U, L, np.array([float(a) for a, _ in g]),
+                    np.array([float(b) for _, b in g]), time.perf_counter() - t0,
+                    int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)
+
+
+_FUNCS = {}
+
+
+def knot_functions(p: F.FSLIPParams, N: int):
+    """CasADi Functions (SX inside, mapped over N knots): dynamics f(X,U) (5×N), leg length L (1×N),
+    and the stacked path-constraint expressions g(X,U) ≥ 0 (rows named in ``PATH_ROWS``)."""
+    import casadi as ca
+    key = (id(p), N)
+    if key in _FUNCS:
+        return _FUNCS[key]
+    x = ca.SX.sym("x", 5)
+    u = ca.SX.sym("u", 3)
+    Fx, Fz = F.grf(x, u, p)
+    L = F.leg_length(x, u, p)
+    Fmax = p.F_max(L)
+    rows = [L - p.L_min, p.L_max - L, u[0], Fz, p.mu * Fz - Fx, p.mu * Fz + Fx,
+            0.5 * p.foot_length * Fz - u[2], 0.5 * p.foot_length * Fz + u[2],
+            p.tau_max - u[1], p.tau_max + u[1], Fmax - u[0]]
+    if math.isfinite(p.knee_no_load_speed):
+        rdot = F.leg_geometry(x)[3]
+        rows.append(Fmax * (1 - p.dqknee_dL(L) * rdot / p.knee_no_load_speed) - u[0])
+    f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
+    fl = ca.Function("L", [x, u], [L]).map(N)
+    fg = ca.Function("g", [x, u], [ca.vertcat(*rows)]).map(N)
+    _FUNCS[key] = (f, fl, fg)
+    return f, fl, fg
+
+
+#: names of the rows of the path constraints g(X, U) >= 0 (for failure diagnosis)
+PATH_ROWS = ("leg length >= L_min", "leg length <= L_max", "leg force >= 0", "F_z >= 0",
+             "friction cone (F_x <= mu F_z)", "friction cone (F_x >= -mu F_z)", "ZMP (u <= F_z l/2)",
+             "ZMP (u >= -F_z l/2)", "flywheel torque <= tau_max", "flywheel torque >= -tau_max",
+             "leg force limit (knee torque)", "knee torque-speed envelope")
+
+
+def transcribe(opti, X, U, T, p, N):
+    """Trapezoidal dynamics + path constraints at every knot; returns the L (1×N) expression."""
+    f, fl, fg = knot_functions(p, N)
+    dt = T / (N - 1)
+    fx = f(X, U)
+    opti.subject_to(X[:, 1:] == X[:, :-1] + 0.5 * dt * (fx[:, :-1] + fx[:, 1:]))
+    opti.subject_to(ca_vec(fg(X, U)) >= 0)
+    opti.subject_to(X[1, :] >= 0.3)
+    return fl(X, U)
+
+
+def ca_vec(M):
+    import casadi as ca
+    return ca.vec(M)
+
+
+def cost_terms(L, U, dt, N):
+    """Σ (c₁ L̈² + c₂ u² + c₃ τ²) ΔT."""
+    import casadi as ca
+    Ldd = (L[2:] - 2 * L[1:-1] + L[:-2]) / dt ** 2
+    return (COST["c1"] * ca.sumsqr(Ldd) + COST["c2"] * ca.sumsqr(U[2, :])
+            + COST["c3"] * ca.sumsqr(U[1, :])) * dt
+
+
+@dataclass
+class JumpTask:
+    kind: str
+    apex: float              # COM apex above take-off ground, m
+    distance: float = 0.0    # m, + forward
+    platform: float = 0.0    # m, landing ground this much lower
+
+    @property
+    def sign(self):
+        return SIGN[self.kind]
+
+
+FZ_MIN = 0.5    # × m g, minimum normal force during the push (before the lift-off ramp)
+FZ_RAMP = 3     # knots over which the minimum normal force ramps down to 0 at lift-off
+U_SCALE = (None, 100.0, 10.0)    # F^s scaled by m g, τ by 100 N·m, u by 10 N·m
+
+
+def _variables(opti, p, N):
+    """(X, U, T) with the controls scaled to O(1) decision variables."""
+    import casadi as ca
+    X = opti.variable(5, N)
+    Us = opti.variable(3, N)
+    sc = ca.DM([p.m * p.g, U_SCALE[1], U_SCALE[2]])
+    U = ca.diag(sc) @ Us
+    return X, U, Us, opti.variable()
+
+
+class JumpingProblem:
+    """The jumping NLP built once per (params, L0, N); the task (sign, apex, distance, platform)
+    enters as ``opti.parameter`` so repeated requests reuse the same IPOPT instance."""
+
+    def __init__(self, p: F.FSLIPParams, L0: float, N: int = 50, T_bounds=(0.3, 1.0)):
+        import casadi as ca
+        self.p, self.L0, self.N = p, L0, N
+        opti = ca.Opti()
+        X, U, Us, T = _variables(opti, p, N)
+        self.X, self.U, self.Us, self.T = X, U, Us, T
+        self.P = opti.parameter(4)          # sign, apex, distance, platform
+        sign, apex, dist, plat = (self.P[i] for i in range(4))
+        dt = T / (N - 1)
+        self.X0, self.U0 = F.static_state(p, L0)
+        opti.subject_to(X[:, 0] == self.X0)
+        opti.subject_to(U[:, 0] == self.U0)
+        opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
+        self.Ls = Ls = transcribe(opti, X, U, T, p, N)
+        opti.subject_to(U[:, N - 1] == 0)          # lift-off: F_z = F_x = u = 0
+        # keep the feet loaded until the push-off (the robot's contact detector would otherwise see
+        # an early lift-off): F_z ≥ FZ_MIN m g, ramping to 0 over the last FZ_RAMP knots
+        xs, us = ca.SX.sym("x", 5), ca.SX.sym("u", 3)
+        Fz = ca.Function("Fz", [xs, us], [F.grf(xs, us, p)[1]]).map(N)(X, U)
+        ramp = np.minimum(1.0, (N - 1 - np.arange(N)) / FZ_RAMP) * FZ_MIN * p.m * p.g
+        opti.subject_to(Fz[:N - 1] >= ramp[:N - 1].reshape(1, -1))
+        xN = X[:, N - 1]
+        zd = xN[3]
+        opti.subject_to(zd >= 0.3)
+        self.Tf = Tf = F.flight_time(zd, plat, p.g)
+        self.beta = beta = F.leg_angle(xN)
+        self.thd = thd = xN[4] / p.I(Ls[N - 1])
+        self.com_h = com_h = float(p.reg("com_h", L0))
+        # task rows (named for failure diagnosis)
+        self.task_rows = {
+            "flip encoding (thetadot*T_flight = ±2π − 2β)": thd * Tf - (sign * 2 * math.pi - 2 * beta),
+            "apex height": xN[1] + zd ** 2 / (2 * p.g) + com_h - apex,
+            "forward distance": 2 * xN[0] + xN[2] * Tf - dist,
+        }
+        for e in self.task_rows.values():
+            opti.subject_to(e == 0)
+        opti.minimize(cost_terms(Ls, U, dt, N))
+        opti.solver("ipopt", IPOPT_OPTS)
+        self.opti = opti
+
+    def _guess(self, task: "JumpTask"):
+        p, N, opti = self.p, self.N, self.opti
+        zd_g = math.sqrt(max(2 * p.g * (task.apex - self.com_h - p.L_max + 0.05), 1.0))
+        Tf_g = float(F.flight_time(zd_g, task.platform, p.g))
+        Tg = 0.6
+        s = np.linspace(0, 1, N)
+        z_lo = p.L_max - 0.06
+        zg = self.X0[1] + (z_lo - self.X0[1]) * s ** 2 - 0.22 * np.sin(np.pi * s) ** 2 * (1 - s)
+        zdg = np.gradient(zg, s * Tg)
+        zdg[-1] = zd_g
+        # most of a forward distance comes from leaning (x at lift-off), the rest from ẋ
+        xg = 0.4 * task.distance * s ** 2
+        opti.set_initial(self.X[0, :], xg)
+        opti.set_initial(self.X[1, :], zg)
+        opti.set_initial(self.X[2, :], np.gradient(xg, s * Tg))
+        opti.set_initial(self.X[3, :], zdg)
+        H_g = task.sign * 2 * math.pi * float(p.I(p.L_max)) / Tf_g
+        opti.set_initial(self.X[4, :], H_g * s)
+        opti.set_initial(self.Us[0, :], (1.5 - s) * (s < 0.98))
+        opti.set_initial(self.Us[1, :], H_g / Tg / U_SCALE[1] * np.ones(N))
+        opti.set_initial(self.Us[2, :], np.zeros(N))
+        opti.set_initial(self.T, Tg)
+
+    def solve(self, task: "JumpTask") -> Solution:
+        """Cold solve (fixed initial guess) for ``task``; RuntimeError on IPOPT failure (the
+        exception carries ``.problem`` for :func:`fslip_planner.feasibility.diagnose`)."""
+        t0 = time.perf_counter()
+        opti = self.opti
+        opti.set_value(self.P, [task.sign, task.apex, task.distance, task.platform])
+        self._guess(task)
+        try:
+            sol = opti.solve()
+        except RuntimeError as e:
+            stats = opti.stats()
+            err = RuntimeError(f"IPOPT: {stats.get('return_status', e)}")
+            err.problem = self
+            raise err
+        res = _collect(opti, sol, self.X, self.U, self.T, self.p, t0, opti.stats())
+        res.extra.update(flight_time=float(sol.value(self.Tf)), beta=float(sol.value(self.beta)),
+                         thetadot=float(sol.value(self.thd)), com_h=self.com_h)
+        return res
+
+
+_PROBLEMS = {}
+
+
+def solve_jumping(task: JumpTask, p: F.FSLIPParams, L0: float, N: int = 50) -> Solution:
+    """Solve the jumping optimisation (problem cached per params/L0/N)."""
+    key = (id(p), round(L0, 6), N)
+    if key not in _PROBLEMS:
+        _PROBLEMS[key] = JumpingProblem(p, L0, N)
+    return _PROBLEMS[key].solve(task)

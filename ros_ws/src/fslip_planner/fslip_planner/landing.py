@@ -1,0 +1,104 @@
+"""Landing optimisation on the FSLIP (paper §III-C), re-solved from the measured post-impact state.
+
+Same transcription and physical constraints as :mod:`fslip_planner.jumping`; the initial state
+X(0) is an ``opti.parameter`` (post-impact state, foot at the origin), the initial controls are
+free (the impact is over, the leg force starts wherever it is).  Final state at rest standing:
+z_N = z_des, ẋ_N = ż_N = x_N = 0, H_N = 0 (θ̇ = 0), F^s_N = m g (τ_N = u_N = 0), held over
+the last knot interval so that the reference ends with L̇ = 0.
+Cost: the jumping cost + α Σ ṡ² ΔT (spring oscillation; ṡ by differences of s = L − r).
+
+``free_momentum=True`` (fallback when a measured state cannot be brought to H = 0, e.g. an
+under-rotated flip with a fast-spinning flywheel) drops H_N = 0: the flywheel keeps its momentum.
+
+The Opti object is kept: :meth:`LandingProblem.solve` sets the parameter, warm-starts IPOPT from the
+previous primal/dual solution and re-solves (a few iterations when the state is near the last one).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from . import fslip as F
+from . import jumping as Jm
+
+ALPHA = 1e-1
+WARM_OPTS = dict(Jm.IPOPT_OPTS)
+WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-6,
+                  "ipopt.warm_start_mult_bound_push": 1e-6, "ipopt.mu_init": 1e-4,
+                  "ipopt.warm_start_slack_bound_push": 1e-6, "ipopt.mu_strategy": "monotone",
+                  "ipopt.max_iter": 60, "ipopt.tol": 1e-5})
+COLD_OPTS = dict(Jm.IPOPT_OPTS)
+COLD_OPTS.update({"ipopt.max_iter": 300})
+
+
+class LandingProblem:
+    """Landing Opti built once per (params, L_stand, N); :meth:`solve` from a post-impact state."""
+
+    def __init__(self, p: F.FSLIPParams, L_stand: float, N: int = 30, T_bounds=(0.4, 1.2),
+                 free_momentum: bool = False):
+        import casadi as ca
+        self.p, self.N = p, N
+        opti = ca.Opti()
+        X, U, Us, T = Jm._variables(opti, p, N)
+        self.X, self.U, self.Us, self.T = X, U, Us, T
+        self.X0 = opti.parameter(5)
+        Xs, Ust = F.static_state(p, L_stand)
+        self.X_stand, self.U_stand = Xs, Ust
+        opti.subject_to(X[:, 0] == self.X0)
+        opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
+        L = Jm.transcribe(opti, X, U, T, p, N)
+        self.L = L
+        rows = slice(0, 4) if free_momentum else slice(0, 5)
+        for k in (N - 2, N - 1):       # at rest over the last interval (L̇ = 0 at the end)
+            opti.subject_to(X[rows, k] == Xs[rows])
+            opti.subject_to(U[:, k] == Ust)
+        dt = T / (N - 1)
+        r = ca.sqrt(X[0, :] ** 2 + X[1, :] ** 2)
+        s = L - r
+        sd = (s[1:] - s[:-1]) / dt
+        opti.minimize(Jm.cost_terms(L, U, dt, N) + ALPHA * ca.sumsqr(sd) * dt)
+        self.opti = opti
+        # one IPOPT instance reused for every solve (Opti.solve would rebuild it each time)
+        opti.solver("ipopt", dict(Jm.IPOPT_OPTS))     # bakes opti.x / opti.g / opti.p
+        nlp = {"x": opti.x, "p": opti.p, "f": opti.f, "g": opti.g}
+        self._bounds = ca.Function("bounds", [opti.p], [opti.lbg, opti.ubg])
+        self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, COLD_OPTS)
+        self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, WARM_OPTS)
+        self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
+        self._last = None
+
+    def _initial_guess(self, x0):
+        s = np.linspace(0, 1, self.N)
+        w = 3 * s ** 2 - 2 * s ** 3
+        Xg = np.outer(1 - w, x0) + np.outer(w, self.X_stand)
+        Usg = np.vstack([1.0 + 0.5 * np.sin(np.pi * s), np.zeros((2, self.N))])
+        # decision vector order = order of creation in _variables: X, Us, T
+        return np.r_[Xg.ravel(), Usg.T.ravel(), 0.7]
+
+    def solve(self, x0, warm=True) -> Jm.Solution:
+        """Solve from the post-impact FSLIP state x0 = [x, z, ẋ, ż, H] (foot at the origin)."""
+        t0 = time.perf_counter()
+        x0 = np.asarray(x0, float)
+        if warm and self._last is not None:
+            xv, lam_g, lam_x = self._last
+            lbg, ubg = self._bounds(x0)
+            res = self.warm(x0=xv, lam_g0=lam_g, lam_x0=lam_x, p=x0, lbg=lbg, ubg=ubg)
+            stats = self.warm.stats()
+        else:
+            lbg, ubg = self._bounds(x0)
+            res = self.cold(x0=self._initial_guess(x0), p=x0, lbg=lbg, ubg=ubg)
+            stats = self.cold.stats()
+        if not stats.get("success", False):
+            raise RuntimeError(f"IPOPT (landing): {stats.get('return_status')}")
+        self._last = (res["x"], res["lam_g"], res["lam_x"])
+        X, U, T = (np.array(v) for v in self._unpack(res["x"]))
+        return _solution(X.T, U.T, float(np.ravel(T)[0]), self.p, t0, stats)
+
+
+def _solution(X, U, T, p, t0, stats) -> Jm.Solution:
+    N = X.shape[0]
+    L = np.array([float(F.leg_length(X[k], U[k], p)) for k in range(N)])
+    g = np.array([[float(v) for v in F.grf(X[k], U[k], p)] for k in range(N)])
+    return Jm.Solution(np.linspace(0, T, N), X, U, L, g[:, 0], g[:, 1], time.perf_counter() - t0,
+                       int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)

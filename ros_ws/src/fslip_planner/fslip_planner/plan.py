@@ -1,0 +1,413 @@
+"""Planner API used by ``planner_node`` and ``scripts/flip plan``: :class:`FlipSession`
+(jumping → flight → landing), :func:`plan_flip`, :class:`MeasuredState`, :class:`InfeasibleRequest`.
+
+FSLIP knots → robot outputs (paper §V-A, eq. Y^{J/L}): ``H_pitch`` = H (the FSLIP flywheel
+momentum I(L)θ̇ = whole-robot centroidal pitch momentum; d = τ, dd = τ̇), ``L`` = r + F^s/K
+(d = ṙ + ṡ, dd = r̈ + s̈ with ṙ, r̈ from the states and the dynamics, ṡ, s̈ by differences of the
+knot values), ``x_com`` = x + (initial robot COM x: the foot sits under the standing COM; d = ẋ,
+dd = ẍ from the dynamics), ``phi_pitch`` = β (the pelvis tracks the leg angle on the ground, §IV-A;
+β̇, β̈ analytic).  Knots are resampled every 2 ms (cubic Hermite on value/derivative pairs).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import numpy as np
+
+from . import fslip as F
+from . import flight as Fl
+from . import jumping as Jm
+from .feasibility import InfeasibleRequest, diagnose, max_vertical_jump, precheck, validate_inputs
+from .landing import LandingProblem
+
+__all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "Reference", "PlanResult", "plan_flip",
+           "default_apex"]
+
+DT_SAMPLE = 0.002
+#: a LIFT_OFF earlier than this fraction of the planned stance, or slower than this fraction of the
+#: planned lift-off ż, aborts the flip (the flight plan asks no rotation; see flight_reference)
+ABORT_STANCE_FRACTION = 0.5
+ABORT_ZDOT_FRACTION = 0.5
+#: default COM apex above the take-off ground (m): the paper's ~1 m scale, set by what the knee
+#: torque–speed envelope can reach: max reachable apex (feasibility.max_vertical_jump) minus this
+#: margin (flywheel I: 1.14 − 0.09 = 1.05 m).
+DEFAULT_APEX_MARGIN = 0.09
+JUMPING, FLIGHT, LANDING = 1, 2, 3
+
+
+@dataclass
+class MeasuredState:
+    """Floating-base state at a contact event (world frame, SI units)."""
+    t: float
+    com: np.ndarray
+    com_velocity: np.ndarray
+    pitch_momentum: float
+    pelvis_pitch: float
+    pelvis_pitch_rate: float
+
+
+@dataclass
+class Reference:
+    """Sampled reference for the controller: ``value``/``d_value``/``dd_value`` are (n, k)."""
+    domain: int
+    t: np.ndarray
+    names: List[str]
+    value: np.ndarray
+    d_value: np.ndarray
+    dd_value: np.ndarray
+    parameters: Dict[str, float] = field(default_factory=dict)
+    figures: Dict[str, float] = field(default_factory=dict)
+
+    @property
+    def duration(self):
+        return float(self.t[-1])
+
+    def column(self, name):
+        i = self.names.index(name)
+        return self.value[:, i], self.d_value[:, i], self.dd_value[:, i]
+
+
+# ------------------------------------------------------------------------------------------ robot
+class _Robot:
+    """Per-flywheel constants from the simulator model (cached)."""
+    _cache: Dict[str, "_Robot"] = {}
+
+    def __init__(self, flywheel):
+        from cassie_flip_sim import robot_params as P
+        from cassie_flip_sim.simulator import Simulator
+        sim = Simulator(flywheel)
+        self.com0 = sim.com_position()
+        self.mass = sim.total_mass()
+        m, d = sim.model, sim.data
+        import mujoco
+        Ls = []
+        for s in ("left", "right"):
+            a = d.xanchor[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_foot")]
+            b = d.xanchor[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_hip_pitch")]
+            Ls.append(np.linalg.norm(a - b))
+        self.L0 = float(np.mean(Ls))
+        self.params = F.params_for(flywheel)
+        fw = P.flywheel(flywheel)
+        self.I_fw = fw.inertia_pitch
+        self.fw_max_speed = (fw.max_speed_rpm * 2 * math.pi / 60) if fw.max_speed_rpm else math.inf
+
+    @classmethod
+    def get_by_params(cls, p):
+        """The robot whose FSLIP parameters are ``p``."""
+        for robot in cls._cache.values():
+            if robot.params is p:
+                return robot
+        raise KeyError("no robot built with these FSLIP parameters")
+
+    @classmethod
+    def get(cls, flywheel):
+        if flywheel not in cls._cache:
+            cls._cache[flywheel] = cls(flywheel)
+        return cls._cache[flywheel]
+
+
+def default_apex(flywheel="I"):
+    """Default apex (m): the reachable maximum minus :data:`DEFAULT_APEX_MARGIN` (I: 1.05 m)."""
+    p = _Robot.get(flywheel).params
+    return round(max_vertical_jump(p)[0] - DEFAULT_APEX_MARGIN, 2)
+
+
+# ------------------------------------------------------------------------------------------ knots
+def knot_outputs(sol: Jm.Solution):
+    """Per-knot (value, d, dd) of x, H, L, β from a solution (see module doc)."""
+    p, X, U, t = sol.params, sol.X, sol.U, sol.t
+    acc = np.array([F.dynamics_np(X[k], U[k], p) for k in range(len(t))])
+    x, z, xd, zd, H = X.T
+    xdd, zdd = acc[:, 2], acc[:, 3]
+    r = np.hypot(x, z)
+    rd = (x * xd + z * zd) / r
+    rdd = (xd ** 2 + zd ** 2 + x * xdd + z * zdd) / r - rd ** 2 / r
+    s = sol.L - r
+    sd = np.gradient(s, t)
+    sdd = np.gradient(sd, t)
+    tau = U[:, 1]
+    w = z * xd - x * zd
+    bd = w / r ** 2
+    bdd = (z * xdd - x * zdd) / r ** 2 - 2 * w * (x * xd + z * zd) / r ** 4
+    return {"x": (x, xd, xdd), "H": (H, tau, np.gradient(tau, t)), "L": (sol.L, rd + sd, rdd + sdd), "r_dot": (rd, rdd),
+            "beta": (np.arctan2(x, z), bd, bdd), "s": s, "acc": acc}
+
+
+def _resample(t, cols, dt=DT_SAMPLE):
+    """cols: list of (v, d, dd) on knots t → (tt, V, D, DD) sampled every dt: V and D from one
+    cubic Hermite spline through (v, d) (D is exactly V'), DD = derivative of the (d, dd) spline."""
+    from scipy.interpolate import CubicHermiteSpline
+    n = max(int(round(t[-1] / dt)), 1) + 1
+    tt = np.linspace(0.0, t[-1], n)
+    V, D, DD = (np.zeros((n, len(cols))) for _ in range(3))
+    for j, (v, d, dd) in enumerate(cols):
+        sv = CubicHermiteSpline(t, v, d)          # value and its exact derivative
+        V[:, j] = sv(tt)
+        D[:, j] = sv.derivative()(tt)
+        DD[:, j] = CubicHermiteSpline(t, d, dd).derivative()(tt)
+    return tt, V, D, DD
+
+
+def ground_reference(domain, sol: Jm.Solution, x_offset: float, figures=None, parameters=None):
+    """JUMPING / LANDING reference (H_pitch, L, x_com, phi_pitch) from FSLIP knots.
+
+    The robot's leg length (hip-pitch joint to foot joint, springs deflected as they are) hardly
+    changes with the load it carries (0.861 m unloaded, 0.864 m standing, measured), so it follows
+    the FSLIP's real leg length r, offset so that standing at rest maps to the robot's standing L;
+    the actuated length L = r + F^s/K would ask the robot to shorten its leg whenever the FSLIP
+    spring unloads."""
+    o = knot_outputs(sol)
+    x, xd, xdd = o["x"]
+    p = sol.params
+    L_stand = _Robot.get_by_params(p).L0
+    r_stand = float(F.static_state(p, L_stand)[0][1])
+    (r, rd, rdd) = (np.hypot(x, sol.X[:, 1]), ) + o["r_dot"]
+    cols = [o["H"], (r + (L_stand - r_stand), rd, rdd), (x + x_offset, xd, xdd), o["beta"]]
+    tt, V, D, DD = _resample(sol.t, cols)
+    return Reference(domain, tt, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD,
+                     dict(parameters or {}), dict(figures or {}))
+
+
+# ------------------------------------------------------------------------------------------ result
+@dataclass
+class PlanResult:
+    """A solved jumping plan (what ``scripts/flip plan`` writes)."""
+    kind: str
+    request: dict
+    solution: Jm.Solution
+    figures: dict
+    lift_off: dict
+
+    def to_dict(self):
+        s = self.solution
+        o = knot_outputs(s)
+        d = {"kind": self.kind, "request": self.request, "lift_off": self.lift_off,
+             "solve_time_s": s.solve_time, "iterations": s.iterations, "status": s.status,
+             "stance_time": s.T,
+             "knots": {"t": s.t, "x": s.X[:, 0], "z": s.X[:, 1], "xdot": s.X[:, 2], "zdot": s.X[:, 3],
+                       "H": s.X[:, 4], "L": s.L, "s": o["s"], "beta": o["beta"][0], "F_s": s.U[:, 0],
+                       "F_z": s.Fz, "F_x": s.Fx, "tau": s.U[:, 1], "u": s.U[:, 2],
+                       "thetadot": s.X[:, 4] / np.array([float(s.params.I(L)) for L in s.L])}}
+        d.update(self.figures)
+        return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in _tolist(d).items()}
+
+
+def _tolist(d):
+    if isinstance(d, dict):
+        return {k: _tolist(v) for k, v in d.items()}
+    if isinstance(d, np.ndarray):
+        return d.tolist()
+    if isinstance(d, np.generic):
+        return d.item()
+    return d
+
+
+def _solve(kind, apex, distance, platform, robot: _Robot):
+    p = robot.params
+    precheck(kind, apex, distance, platform, p, robot.L0)
+    task = Jm.JumpTask(kind, apex, distance, platform)
+    try:
+        return Jm.solve_jumping(task, p, robot.L0)
+    except RuntimeError as e:
+        raise InfeasibleRequest(f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform "
+                                f"{platform:.2f} m: {diagnose(e, p)}") from None
+
+
+def _figures(sol: Jm.Solution, robot: _Robot):
+    X = sol.X[-1]
+    L = sol.L[-1]
+    p = sol.params
+    I_tot = float(p.I(L))
+    thd = X[4] / I_tot
+    # flywheel spin (joint speed relative to the pelvis): the rest of the robot turns with the
+    # pelvis at β̇ (the pelvis tracks β), the flywheel carries H − (I(L) − I_fw) β̇
+    Xs = sol.X
+    bd = (Xs[:, 1] * Xs[:, 2] - Xs[:, 0] * Xs[:, 3]) / (Xs[:, 0] ** 2 + Xs[:, 1] ** 2)
+    I_L = np.array([float(p.I(v)) for v in sol.L])
+    H_fw = Xs[:, 4] - (I_L - robot.I_fw) * bd
+    peak = float(np.max(np.abs(H_fw / robot.I_fw - bd)))
+    T_f = sol.extra["flight_time"]
+    f = {"liftoff_zdot": float(X[3]), "liftoff_xdot": float(X[2]), "liftoff_pitch_rate": float(thd),
+         "flight_time": float(T_f), "rotation_to_go": float(thd * T_f),
+         "peak_flywheel_speed": float(peak), "solve_time": float(sol.solve_time),
+         "iterations": int(sol.iterations)}
+    lo = {"zdot": float(X[3]), "xdot": float(X[2]), "beta": float(sol.extra["beta"]),
+          "thetadot": float(thd), "momentum": float(X[4]), "L": float(L), "x": float(X[0]),
+          "z": float(X[1]), "inertia": I_tot}
+    return f, lo
+
+
+def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I") -> PlanResult:
+    """Jumping plan alone (no ROS).  ``apex_height`` None or 0 → :func:`default_apex`."""
+    apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height, flywheel)
+    robot = _Robot.get(flywheel)
+    apex = default_apex(flywheel) if apex is None else apex
+    sol = _solve(kind, apex, dist, plat, robot)
+    fig, lo = _figures(sol, robot)
+    req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel)
+    return PlanResult(kind, req, sol, fig, lo)
+
+
+# ------------------------------------------------------------------------------------------ session
+class FlipSession:
+    """One flip: jumping plan at construction/request, flight plan at lift-off, landing re-solve at
+    touch-down; ``finished`` once the landing reference has ended (or the flip was abandoned)."""
+
+    GRACE = 0.5   # s after the planned end of a phase before the flip counts as abandoned
+
+    def __init__(self, kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I"):
+        apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height,
+                                           flywheel)
+        self.kind, self.flywheel = kind, flywheel
+        self.robot = _Robot.get(flywheel)
+        self.apex = default_apex(flywheel) if apex is None else apex
+        self.distance, self.platform = dist, plat
+        self.result: Optional[PlanResult] = None
+        self.t_start = self.t_liftoff = self.t_touchdown = None
+        self.landing_end = None
+        self._landing: Optional[LandingProblem] = None
+        self._flight_T = None
+        self.aborted = False
+
+    # --- jumping
+    def jumping_reference(self) -> Reference:
+        if self.result is None:
+            sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot)
+            fig, lo = _figures(sol, self.robot)
+            self.result = PlanResult(self.kind, {}, sol, fig, lo)
+            self._prepare_landing()
+        r = self.result
+        return ground_reference(JUMPING, r.solution, float(self.robot.com0[0]), r.figures,
+                                {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"]})
+
+    def _prepare_landing(self):
+        """Build the landing NLP and solve it for the predicted touch-down (warm start later)."""
+        p = self.robot.params
+        self._landing = LandingProblem(p, self.robot.L0)
+        self._free_landing()                        # fallback NLP, built now rather than at touch-down
+        try:
+            self._landing.solve(self._touchdown_state(None), warm=False)
+        except RuntimeError:
+            pass   # the measured touch-down will be solved cold
+
+    def _touchdown_state(self, state: Optional[MeasuredState]):
+        lo = self.result.lift_off
+        r = math.hypot(lo["x"], lo["z"])
+        b = lo["beta"]
+        if state is None:
+            zd = -math.sqrt(lo["zdot"] ** 2 + 2 * F.G * self.platform)
+            return np.array([-r * math.sin(b), r * math.cos(b), lo["xdot"], zd, lo["momentum"]])
+        v = np.asarray(state.com_velocity, float)
+        return np.array([-r * math.sin(b), r * math.cos(b), v[0], v[2], float(state.pitch_momentum)])
+
+    def started(self, t_start: float):
+        self.t_start = float(t_start)
+
+    # --- flight
+    def flight_reference(self, state: MeasuredState) -> Optional[Reference]:
+        """FLIGHT reference at LIFT_OFF; None for contact events before the jump has started.
+
+        A premature (< ½ the planned stance) or weak (ż < ½ planned) lift-off, or a bounce after
+        the landing, gets a no-rotation flight plan (level pelvis) and marks the flip aborted."""
+        _check_state(state)
+        if self.result is None or self.t_start is None or state.t < self.t_start:
+            return None
+        self.t_liftoff = float(state.t)
+        lo = self.result.lift_off
+        kind, beta, plat = self.kind, lo["beta"], self.platform
+        zd = float(state.com_velocity[2])
+        early = state.t - self.t_start < ABORT_STANCE_FRACTION * self.result.solution.T
+        weak = zd < ABORT_ZDOT_FRACTION * lo["zdot"]
+        if self.t_touchdown is not None or early or weak:
+            # a bounce after the landing, or a premature / weak lift-off: a flip in this flight time
+            # is impossible, so no rotation is asked (level pelvis) and the flip is abandoned
+            kind, beta, plat = "hop", 0.0, 0.0
+            self.t_touchdown = self.landing_end = None
+            self.aborted = self.aborted or early or weak
+        fp = Fl.flight_plan(kind, float(state.pelvis_pitch), float(state.pelvis_pitch_rate),
+                            float(state.com_velocity[2]), beta, lo["L"], plat)
+        self._flight_T = fp["T"]
+        th, L = fp["theta"], fp["L"]
+        V = np.column_stack([th[0], L[0]])
+        D = np.column_stack([th[1], L[1]])
+        DD = np.column_stack([th[2], L[2]])
+        fig = dict(self.result.figures)
+        fig.update(flight_time=fp["T"], rotation_to_go=fp["theta_T"] - float(state.pelvis_pitch),
+                   solve_time=0.0, iterations=0, aborted=float(self.aborted))
+        return Reference(FLIGHT, fp["t"], ["phi_pitch", "L"], V, D, DD,
+                         {"flight_time": fp["T"], "T1": fp["T1"], "beta_liftoff": -lo["beta"]}, fig)
+
+    # --- landing
+    def landing_reference(self, state: MeasuredState) -> Optional[Reference]:
+        """LANDING reference at TOUCH_DOWN (None if there was no lift-off of this flip).
+
+        Warm re-solve from the nominal touch-down solution; if IPOPT fails: cold, then with the
+        momentum left free (the flywheel keeps spinning), and as a last resort a blend to standing
+        (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out."""
+        _check_state(state)
+        if self.result is None or self.t_liftoff is None or state.t < self.t_liftoff:
+            return None
+        t0 = time.perf_counter()
+        self.t_touchdown = float(state.t)
+        x0 = self._touchdown_state(state)
+        foot_x = float(state.com[0]) - x0[0]
+        fig = dict(self.result.figures)
+        if self._landing is None:
+            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+        sol, fallback = None, 0
+        attempts = [(lambda: self._landing.solve(x0, warm=True)),
+                    (lambda: self._landing.solve(x0, warm=False)),
+                    (lambda: self._free_landing().solve(x0, warm=False))]
+        for i, attempt in enumerate(attempts):
+            try:
+                sol, fallback = attempt(), i
+                break
+            except RuntimeError:
+                continue
+        if sol is not None:
+            sol.solve_time = time.perf_counter() - t0
+            fig.update(solve_time=sol.solve_time, iterations=sol.iterations, rotation_to_go=0.0,
+                       fallback=float(fallback))
+            ref = ground_reference(LANDING, sol, foot_x, fig)
+        else:
+            fig.update(solve_time=time.perf_counter() - t0, iterations=0, rotation_to_go=0.0, fallback=3.0)
+            ref = _blend_to_standing(x0, self.result.lift_off["L"], self.robot.L0, foot_x, fig)
+        self.landing_end = self.t_touchdown + ref.duration
+        return ref
+
+    def _free_landing(self):
+        if getattr(self, "_landing_free", None) is None:
+            self._landing_free = LandingProblem(self.robot.params, self.robot.L0, free_momentum=True)
+        return self._landing_free
+
+    def finished(self, t: float) -> bool:
+        if self.landing_end is not None:
+            return t >= self.landing_end
+        if self.t_start is None:
+            return self.result is None
+        if self.t_liftoff is None:   # never lifted off: abandoned after the jumping plan + grace
+            return t > self.t_start + self.result.solution.T + self.GRACE
+        if self.t_touchdown is None:
+            return t > self.t_liftoff + (self._flight_T or 0.0) + 2.0
+        return False
+
+
+def _blend_to_standing(x0, L_td, L_stand, foot_x, figures, T=1.0):
+    """Last-resort LANDING reference: momentum held, L and pelvis pitch min-jerk to standing,
+    COM x min-jerk to above the foot."""
+    t = np.linspace(0.0, T, int(round(T / DT_SAMPLE)) + 1)
+    z = np.zeros_like(t)
+    cols = [(np.full_like(t, x0[4]), z, z), Fl.min_jerk(L_td, L_stand, T, t),
+            Fl.min_jerk(foot_x + x0[0], foot_x, T, t), Fl.min_jerk(math.atan2(x0[0], x0[1]), 0.0, T, t)]
+    V, D, DD = (np.column_stack([c[i] for c in cols]) for i in range(3))
+    return Reference(LANDING, t, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD, {}, figures)
+
+
+def _check_state(s: MeasuredState):
+    vals = np.r_[np.ravel(s.com), np.ravel(s.com_velocity), s.pitch_momentum, s.pelvis_pitch,
+                 s.pelvis_pitch_rate, s.t]
+    if not np.all(np.isfinite(vals)) or np.size(s.com) != 3 or np.size(s.com_velocity) != 3:
+        raise ValueError(f"malformed measured state: {s}")

@@ -1,0 +1,69 @@
+"""A flip without ROS: cassie_flip_sim.Simulator + fslip_planner.FlipSession + tsc_controller.Controller
+wired the way the node graph wires them (contact events -> planner -> references -> controller),
+in one process.  For tests and experiments; the nodes are the product."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cassie_flip_sim.model import export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from fslip_planner.plan import FlipSession, MeasuredState
+from tsc_controller import Controller, SampledReference, StateConverter
+
+
+def measured(sim: Simulator) -> MeasuredState:
+    p, (w, x, y, z) = sim.pelvis_pose()
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    return MeasuredState(t=sim.time, com=sim.com_position(), com_velocity=sim.com_velocity(),
+                         pitch_momentum=sim.centroidal_pitch_momentum(), pelvis_pitch=pitch,
+                         pelvis_pitch_rate=float(sim.pelvis_twist("world")[1][1]))
+
+
+def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
+    return SampledReference(ref.domain, ref.t, ref.names, ref.value, ref.d_value, ref.dd_value,
+                            start_time=start_time, plan_id=plan_id, parameters=ref.parameters)
+
+
+def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, **request):
+    """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events."""
+    sim = sim or Simulator()
+    ctl = controller or Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    session = FlipSession(kind, **request)
+    ref = session.jumping_reference()
+    session.started(start)
+    ctl.set_reference(to_sampled(ref, start))
+    log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], events=[], fell=None)
+    fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
+    while sim.time < seconds:
+        for ev in sim.pop_events():
+            log["events"].append((int(ev.kind), ev.time))
+            ctl.on_contact_event(int(ev.kind), ev.time)
+            st = measured(sim)
+            r = None
+            if int(ev.kind) == 0:
+                r = session.flight_reference(st)
+            elif int(ev.kind) == 1:
+                r = session.landing_reference(st)
+            if r is not None:
+                ctl.set_reference(to_sampled(r, ev.time))
+        q, v = sc.from_simulator(sim)
+        u, info = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        if sim.step_index % every == 0:
+            p, _ = sim.pelvis_pose()
+            log["t"].append(sim.time)
+            log["z"].append(p[2])
+            log["x"].append(p[0])
+            log["pitch"].append(ctl.pitch)
+            log["H"].append(sim.centroidal_pitch_momentum())
+            log["dom"].append(info["domain"])
+            log["fw"].append(sim.data.qvel[fw_dof])
+        if sim.body_contacts():
+            log["fell"] = sim.time
+            break
+    out = {k: (np.array(v) if k not in ("events", "fell") else v) for k, v in log.items()}
+    out.update(sim=sim, ctl=ctl, session=session)
+    return out

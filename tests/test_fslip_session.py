@@ -1,0 +1,161 @@
+"""FlipSession: jumping -> flight -> landing -> finished, with synthetic measured states."""
+import math
+
+import numpy as np
+import pytest
+
+from fslip_planner import plan as P
+from fslip_planner.landing import LandingProblem
+
+
+def _consistent(ref, name, tol):
+    """d_value is the time derivative of value (central differences on the 2 ms grid)."""
+    v, d, _ = ref.column(name)
+    num = np.gradient(v, ref.t)
+    assert np.max(np.abs(num[2:-2] - d[2:-2])) < tol
+
+
+@pytest.fixture(scope="module")
+def flow():
+    s = P.FlipSession("backflip")
+    jr = s.jumping_reference()
+    s.started(10.0)
+    lo = s.result.lift_off
+    t_lo = 10.0 + jr.duration
+    st_lo = P.MeasuredState(t_lo, np.array([-0.08, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                            lo["momentum"], lo["beta"], -2.0)
+    fr = s.flight_reference(st_lo)
+    t_td = t_lo + fr.duration
+    # post-impact: a bit slower, under-rotated (some momentum left), off the nominal state
+    st_td = P.MeasuredState(t_td, np.array([0.05, 0.0, 0.95]), np.array([0.8 * lo["xdot"], 0.0, -0.9 * lo["zdot"]]),
+                            0.3 * lo["momentum"], -lo["beta"] + 0.05, 1.0)
+    lr = s.landing_reference(st_td)
+    return s, jr, fr, lr, st_lo, st_td
+
+
+def test_jumping_reference(flow):
+    s, jr, *_ = flow
+    assert jr.domain == 1 and jr.names == ["H_pitch", "L", "x_com", "phi_pitch"]
+    assert jr.value.shape == jr.d_value.shape == jr.dd_value.shape == (len(jr.t), 4)
+    assert np.all(np.diff(jr.t) > 0) and np.diff(jr.t).max() < 0.0025
+    H, dH, _ = jr.column("H_pitch")
+    assert H[0] == pytest.approx(0.0, abs=1e-9) and H[-1] == pytest.approx(s.result.lift_off["momentum"])
+    L, _, _ = jr.column("L")
+    assert L[0] == pytest.approx(s.robot.L0, abs=1e-6)
+    x, xd, _ = jr.column("x_com")
+    assert x[0] == pytest.approx(s.robot.com0[0], abs=1e-9)       # absolute world COM x
+    assert xd[-1] == pytest.approx(s.result.lift_off["xdot"], rel=1e-6)
+    for name, tol in (("H_pitch", 2.0), ("L", 0.05), ("x_com", 0.01), ("phi_pitch", 0.05)):
+        _consistent(jr, name, tol)
+    f = jr.figures
+    assert f["flight_time"] > 0.2 and f["peak_flywheel_speed"] > 100 and f["iterations"] > 0
+    assert jr.parameters["beta_liftoff"] == pytest.approx(-s.result.lift_off["beta"])
+
+
+def test_flight_reference(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert fr.domain == 2 and set(fr.names) == {"phi_pitch", "L"}
+    T = fr.parameters["flight_time"]
+    assert T == pytest.approx(2 * st_lo.com_velocity[2] / 9.81, rel=1e-9)
+    assert fr.parameters["T1"] == pytest.approx(0.75 * T)
+    th, om, _ = fr.column("phi_pitch")
+    beta = s.result.lift_off["beta"]
+    assert th[0] == pytest.approx(st_lo.pelvis_pitch) and om[0] == pytest.approx(st_lo.pelvis_pitch_rate)
+    assert th[-1] == pytest.approx(-2 * math.pi - beta, abs=1e-9) and om[-1] == pytest.approx(0, abs=1e-9)
+    L, _, _ = fr.column("L")
+    L_lo = s.result.lift_off["L"]
+    assert L.min() < L_lo - 0.1                                           # tucked
+    i1 = np.searchsorted(fr.t, fr.parameters["T1"])
+    np.testing.assert_allclose(L[i1:], L_lo, atol=1e-6)                    # extended again by T1
+    _consistent(fr, "phi_pitch", 0.05)
+    assert fr.figures["rotation_to_go"] == pytest.approx(th[-1] - th[0])
+
+
+def test_landing_reference_converges_to_rest(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert lr.domain == 3 and lr.names == jr.names
+    H, dH, _ = lr.column("H_pitch")
+    assert H[0] == pytest.approx(st_td.pitch_momentum, rel=1e-6)
+    assert abs(H[-1]) < 1e-6
+    L, Ld, _ = lr.column("L")
+    assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6) and abs(Ld[-1]) < 1e-3
+    x, xd, _ = lr.column("x_com")
+    assert x[0] == pytest.approx(st_td.com[0], abs=1e-9) and abs(xd[-1]) < 1e-6
+    assert 0 < lr.figures["solve_time"] < 1.0
+
+
+def test_finished_sequence(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert not s.finished(st_td.t + 0.5 * lr.duration)
+    assert s.finished(st_td.t + lr.duration + 1e-3)
+    fresh = P.FlipSession("hop")
+    fresh.jumping_reference()
+    fresh.started(0.0)
+    assert not fresh.finished(0.1)
+    assert fresh.finished(fresh.result.solution.T + 1.0)     # never lifted off: abandoned
+
+
+def test_landing_warm_resolves_perturbed_states():
+    robot = P._Robot.get("I")
+    lp = LandingProblem(robot.params, robot.L0)
+    b, r = 0.08, 0.85
+    x0 = np.array([-r * math.sin(b), r * math.cos(b), 0.4, -1.6, -40.0])
+    cold = lp.solve(x0, warm=False)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        xp = x0 + rng.normal(0, 1, 5) * [0.01, 0.01, 0.1, 0.1, 2.0]
+        sol = lp.solve(xp)
+        assert sol.status == "Solve_Succeeded"
+        np.testing.assert_allclose(sol.X[0], xp, atol=1e-8)
+        np.testing.assert_allclose(sol.X[-1, 2:], 0.0, atol=1e-6)
+        assert sol.U[-1, 0] == pytest.approx(robot.params.m * 9.81, rel=1e-6)
+        assert np.all(sol.Fz >= -1e-3) and np.all(np.abs(sol.Fx) <= 0.6 * sol.Fz + 1e-3)
+        assert sol.iterations < cold.iterations + 10
+
+
+def test_contact_events_outside_the_flip_are_ignored():
+    s = P.FlipSession("backflip")
+    s.jumping_reference()
+    s.started(5.0)
+    st = P.MeasuredState(0.1, np.array([0.0, 0.0, 0.94]), np.zeros(3), 0.0, 0.0, 0.0)
+    assert s.flight_reference(st) is None          # settling chatter before the jump starts
+    assert s.landing_reference(st) is None         # touch-down without a lift-off of this flip
+    assert s.t_liftoff is None and not s.finished(5.5)
+
+
+def test_landing_always_answers_even_from_a_failed_flip():
+    s = P.FlipSession("backflip")
+    s.jumping_reference()
+    s.started(0.0)
+    lo = s.result.lift_off
+    s.flight_reference(P.MeasuredState(1.0, np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.0, 1.6]),
+                                       lo["momentum"], lo["beta"], 0.0))
+    # the run that exposed it: touch-down with ẋ = −0.75 m/s, ż ≈ 0 and H = −118 kg·m²/s
+    lr = s.landing_reference(P.MeasuredState(1.3, np.array([0.0, 0.0, 0.9]), np.array([-0.75, 0.0, -0.01]),
+                                             -118.1, 0.3, -5.0))
+    assert lr is not None and lr.domain == 3 and lr.figures["fallback"] >= 1
+    H, _, _ = lr.column("H_pitch")
+    assert H[0] == pytest.approx(-118.1)
+    L, _, _ = lr.column("L")
+    assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6)
+    assert np.all(np.isfinite(lr.value)) and np.all(np.isfinite(lr.dd_value))
+
+
+def test_premature_liftoff_aborts_the_flip():
+    s = P.FlipSession("backflip")
+    jr = s.jumping_reference()
+    s.started(1.0)
+    lo = s.result.lift_off
+    # 0.11 s into a 1 s push, barely moving up (seen in a closed-loop run)
+    fr = s.flight_reference(P.MeasuredState(1.11, np.array([0.0, 0.0, 0.9]), np.array([0.0, 0.0, 0.05]),
+                                            5.0, -0.1, 0.0))
+    th, _, _ = fr.column("phi_pitch")
+    assert s.aborted and fr.figures["aborted"] == 1.0
+    assert th[-1] == pytest.approx(0.0) and np.all(np.abs(th) < 0.2)     # no flip asked
+    # the nominal lift-off is not aborted
+    s2 = P.FlipSession("backflip")
+    s2.jumping_reference()
+    s2.started(1.0)
+    fr2 = s2.flight_reference(P.MeasuredState(1.0 + jr.duration, np.array([0.0, 0.0, 1.0]),
+                                              np.array([lo["xdot"], 0.0, lo["zdot"]]), lo["momentum"], lo["beta"], 0.0))
+    assert not s2.aborted and fr2.column("phi_pitch")[0][-1] == pytest.approx(-2 * math.pi - lo["beta"])
