@@ -411,16 +411,17 @@ class Controller:
     def compute(self, q, v, t):
         """One TSC tick: returns (u (11,), info dict)."""
         t0 = time.perf_counter()
-        if self.cfg.rigid_springs and self.cfg.spring_rate_zero:
-            # the QP holds the leaf springs rigid (dynamics module doc); their measured rates are
-            # the leg's ringing, which that model cannot predict: seen through the outputs' J v and
-            # drift terms they make the torques chatter at the spring frequency
+        self._switch(t)                            # events and references only, no state needed
+        if self.cfg.rigid_springs and self.cfg.spring_rate_zero and self.domain != Domain.FLIGHT:
+            # on the ground the QP holds the leaf springs rigid (dynamics module doc); their measured
+            # rates are the leg's ringing, which that model cannot predict: seen through the outputs'
+            # J v and drift terms they make the torques chatter at the spring frequency.  In flight
+            # they stay: the momenta (H_pitch, the momentum transmission) need every rate.
             v = np.array(v, float)
             v[self.dyn.spring_v] = 0.0
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
         self._update_pitch()
-        self._switch(t)
         if self.t_enter is None:
             self.t_enter = t
         ground, outs, des = self._task(t)
