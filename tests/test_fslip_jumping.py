@@ -54,6 +54,10 @@ def test_constraints_hold_at_every_knot(plans, kind):
     assert s.Fz[0] == pytest.approx(p.m * p.g, rel=1e-6)
     assert abs(s.Fz[-1]) < 1e-6 and abs(s.Fx[-1]) < 1e-6
     assert s.X[-1, 3] > 0.3
+    # control rates (Jm.RATE_LIMITS): forces the spring legs and leaf springs can follow
+    dt = np.diff(s.t)
+    rate = np.array([Jm.RATE_LIMITS[0] * p.m * p.g, Jm.RATE_LIMITS[1], Jm.RATE_LIMITS[2]])
+    assert np.all(np.abs(np.diff(s.U, axis=0)) <= rate * dt[:, None] * (1 + 1e-6) + 1e-6)
 
 
 @pytest.mark.parametrize("kind", list(CASES))

@@ -24,12 +24,19 @@ class MotorLimits:
     no_load_speed: np.ndarray    # joint side, rad/s (inf = no speed dependence)
 
     @staticmethod
-    def from_flywheel(flywheel: P.Flywheel | str | tuple | None = "I") -> "MotorLimits":
+    def from_flywheel(flywheel: P.Flywheel | str | tuple | None = "I",
+                      speed_scale: float = 1.0) -> "MotorLimits":
+        """The robot's motors and the flywheel's.  ``speed_scale`` multiplies the no-load speeds of
+        the ten leg motors (1 = the published Cassie motors; a design study of what a flip needs
+        may raise it — the knee's 8.5 rad/s caps the lift-off speed near 1.6 m/s)."""
+        if not (speed_scale > 0.0):
+            raise ValueError(f"motor speed scale must be > 0, got {speed_scale}")
         fw = P.flywheel(flywheel)
         motors = list(P.CASSIE_MOTORS) + ([P.flywheel_motor(fw)] if fw is not None else [])
+        w0 = np.array([m.no_load_speed for m in motors], float)
+        w0[:len(P.CASSIE_MOTORS)] *= speed_scale
         return MotorLimits(tuple(m.joint for m in motors),
-                           np.array([m.torque_limit for m in motors], float),
-                           np.array([m.no_load_speed for m in motors], float))
+                           np.array([m.torque_limit for m in motors], float), w0)
 
     def bounds(self, motor_velocities) -> Tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of the joint-side torques at the given joint-side motor velocities (rad/s)."""

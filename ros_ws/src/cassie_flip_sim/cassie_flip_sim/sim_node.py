@@ -84,8 +84,10 @@ class SimNode:
             raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
         if self.controller not in ('tsc', 'none'):
             raise ValueError(f"controller must be 'tsc' or 'none', not {self.controller!r}")
+        # leg motors' no-load speeds x this (1 = published Cassie motors; a design-study knob)
+        speed_scale = float(_declare(n, 'motor_speed_scale', 1.0))
         fw = (inertia, mass) if inertia > 0 and mass > 0 else flywheel
-        self.sim = Simulator(flywheel=fw, scenario=scenario)
+        self.sim = Simulator(flywheel=fw, scenario=scenario, motor_speed_scale=speed_scale)
         self.scenario = scenario
         self.dt = self.sim.timestep
         self.dt_ns = int(round(self.dt * 1e9))

@@ -22,12 +22,13 @@ class Simulator:
     """MuJoCo simulation of one scenario.  Joint-side torques in, state out."""
 
     def __init__(self, flywheel: M.FlywheelSpec = "I", scenario: Union[str, M.Scenario, None] = None, *,
-                 clip_torques: bool = True, detector: Optional[ContactDetector] = None):
+                 clip_torques: bool = True, detector: Optional[ContactDetector] = None,
+                 motor_speed_scale: float = 1.0):
         self.flywheel = P.flywheel(flywheel)
         self.scenario = M.scenario(scenario)
         self.model = M.build_model(self.flywheel, self.scenario)
         self.data = mujoco.MjData(self.model)
-        self.limits = MotorLimits.from_flywheel(self.flywheel)
+        self.limits = MotorLimits.from_flywheel(self.flywheel, motor_speed_scale)
         self.clip_torques = clip_torques
         self.detector = detector if detector is not None else ContactDetector(True)
         self.motor_names = self.limits.names

@@ -142,6 +142,20 @@ class JumpTask:
 FZ_MIN = 0.5    # × m g, minimum normal force during the push (before the lift-off ramp)
 FZ_RAMP = 3     # knots over which the minimum normal force ramps down to 0 at lift-off
 U_SCALE = (None, 100.0, 10.0)    # F^s scaled by m g, τ by 100 N·m, u by 10 N·m
+#: largest rates of the controls (F^s in m g/s, τ and u in N·m/s): the robot's leg is a spring
+#: (≈3.5 Hz with the body on it) and its torques reach the ground through the leaf springs, so a
+#: plan whose forces jump from knot to knot is not tracked (the feet unload and the robot lifts off
+#: early); measured in closed loop with tsc_controller
+RATE_LIMITS = (20.0, 5000.0, 1000.0)
+
+
+def add_rate_limits(opti, U, dt, p, limits=RATE_LIMITS):
+    """|U[:, k+1] − U[:, k]| ≤ rate · ΔT for the three controls (see :data:`RATE_LIMITS`)."""
+    import casadi as ca
+    rate = ca.DM([limits[0] * p.m * p.g, limits[1], limits[2]])
+    dU = U[:, 1:] - U[:, :-1]
+    for i in range(3):
+        opti.subject_to(opti.bounded(-rate[i] * dt, dU[i, :], rate[i] * dt))
 
 
 def _variables(opti, p, N):
@@ -173,6 +187,7 @@ class JumpingProblem:
         opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
         self.Ls = Ls = transcribe(opti, X, U, T, p, N)
         opti.subject_to(U[:, N - 1] == 0)          # lift-off: F_z = F_x = u = 0
+        add_rate_limits(opti, U, dt, p)
         # keep the feet loaded until the push-off (the robot's contact detector would otherwise see
         # an early lift-off): F_z ≥ FZ_MIN m g, ramping to 0 over the last FZ_RAMP knots
         xs, us = ca.SX.sym("x", 5), ca.SX.sym("u", 3)

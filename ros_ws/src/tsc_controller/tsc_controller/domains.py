@@ -125,14 +125,22 @@ def leg_catch(L0, v0, L1, t, decel=15.0, L_min=0.50, rise_time=1.5):
     ``rise_time``.  Returns (L, Ldot, Lddot) at time t after touch-down.  A quintic that starts with
     the touch-down velocity either overshoots the leg stroke or ends with a deceleration above g
     that throws the robot off the ground again; this profile does neither."""
-    if v0 >= 0.0:
-        return quintic(np.array([L0]), np.array([L1]), rise_time, t)
+    if v0 >= 0.0:      # already rising (a re-anchor mid-landing): keep that velocity, do not stop the leg
+        return quintic(np.array([L0]), np.array([L1]), rise_time, t, np.array([v0]))
     d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
     a = v0 * v0 / (2.0 * d)
     tc = -v0 / a
     if t < tc:
         return np.array([L0 + v0 * t + 0.5 * a * t * t]), np.array([v0 + a * t]), np.array([a])
     return quintic(np.array([L0 - d]), np.array([L1]), rise_time, t - tc)
+
+
+def leg_catch_duration(L0, v0, decel=15.0, L_min=0.50, rise_time=1.5):
+    """Time after which :func:`leg_catch` has reached its final value."""
+    if v0 >= 0.0:
+        return rise_time
+    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
+    return -v0 / (v0 * v0 / (2.0 * d)) + rise_time
 
 
 DEFAULT_GAINS = {
@@ -160,6 +168,7 @@ class ControllerConfig:
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
     rigid_springs: bool = True
+    motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
     spring_rate_zero: bool = True     # with rigid springs, feed the controller zero spring rates
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
@@ -188,7 +197,7 @@ class Controller:
         self.cfg = cfg
         self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs)
         self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
-        self.limits = TorqueLimits()
+        self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
         g = cfg.gains
         self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", g)
@@ -259,7 +268,10 @@ class Controller:
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
             r = self.refs.get(Domain.LANDING)
-            done = r.start_time + r.duration < t if r is not None else t - self.t_enter > self.cfg.blend_time
+            # the fallback landing ends when its own profiles have (leg catch + rise, momentum removal),
+            # not after blend_time: re-anchoring the standing targets mid-catch throws the robot
+            done = (r.start_time + r.duration < t if r is not None
+                    else self._stand is not None and t - self._stand["t0"] > self._stand["T_done"])
             if done:
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
@@ -292,6 +304,9 @@ class Controller:
                                c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
                                Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy(), H0=H0.copy(),
                                TH=max(self.cfg.blend_time, abs(float(H0[0])) / self.cfg.landing_moment))
+            self._stand["T_done"] = max(self.cfg.blend_time, self._stand["TH"],
+                                        leg_catch_duration(float(L0[0]), float(Ld0[0]), self.cfg.catch_decel,
+                                                           self.cfg.L_min))
         s = self._stand
         T, dt = self.cfg.blend_time, t - s["t0"]
         return {

@@ -48,9 +48,9 @@ class TorqueLimits:
     ``cassie_flip_sim.motor_limits`` (same parameters, same formula, without its per-call overhead):
     motoring, the torque falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
 
-    def __init__(self, limits=None):
+    def __init__(self, limits=None, speed_scale: float = 1.0):
         from cassie_flip_sim import motor_limits as ml
-        lim = limits if limits is not None else ml.DEFAULT_LIMITS
+        lim = limits if limits is not None else ml.MotorLimits.from_flywheel("I", speed_scale)
         self.tau_max = np.asarray(lim.torque_limit, float)
         w0 = np.asarray(lim.no_load_speed, float)
         self._inv_w0 = np.where(np.isinf(w0), 0.0, 1.0 / np.where(np.isinf(w0), 1.0, w0))

@@ -39,6 +39,8 @@ class TscNode:
         ])
         self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
         self.controller = None
+        # leg motors' no-load speeds x this: the same robot as the simulator's (sim_node parameter)
+        self.motor_speed_scale = float(self.node.declare_parameter('motor_speed_scale', 1.0).value)
         self.cmd = MotorCommand()
         self.cmd.name = list(MOTOR_NAMES)
         self.js = self.odom = None
@@ -86,7 +88,7 @@ class TscNode:
                 break
             for topic, msg in taken:
                 if topic == '/robot_description':
-                    self.controller = Controller(msg.data)
+                    self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale)
                     log.info('controller built from /robot_description')
                     for m in pending:
                         self._on_reference(m)
