@@ -1,6 +1,7 @@
 """PNG plots of a run from its bag (matplotlib Agg; no ROS import), after the paper's Fig. 6.
 
-fig6.png      pitch momentum (planned per domain vs. measured at contact events), leg length,
+fig6.png      pitch momentum (planned per domain vs. measured: recomputed from /joint_states + /odom
+              with the model on /robot_description, flywheel share too), leg length,
               ground normal force, x_com, pelvis pitch (planned vs. /odom), flywheel torque and
               speed — each panel shows what the bag holds and says "not in the bag" otherwise.
 pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
@@ -19,6 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .bag import BagData, load_bag  # noqa: E402
+from .measured import measured_outputs  # noqa: E402
 from .summary import odom_time, pitch_unwrapped, tilt  # noqa: E402
 
 DOMAIN_NAMES = {0: "standing", 1: "jumping", 2: "flight", 3: "landing"}
@@ -107,10 +109,15 @@ def _fig6(data, path):
     od = data.get("/odom")
     js = data.get("/joint_states")
     mc = data.get("/motor_command")
+    m = measured_outputs(data)
 
     ax = axs[0]
     ax.set_ylabel("pitch momentum\n(kg m²/s)")
     have = _plot_ref(ax, data, "H_pitch")
+    if m is not None:
+        ax.plot(m["t"], m["H_pitch"], color="C0", lw=1, label="measured H_pitch")
+        ax.plot(m["t"], m["H_flywheel"], color="C2", lw=1, label="measured H_flywheel")
+        have = True
     if ce is not None and len(ce["t"]):
         ax.plot(ce["t"], ce["H_pitch"], "o", color="C0", label="measured (contact events)")
         have = True
@@ -119,8 +126,12 @@ def _fig6(data, path):
 
     ax = axs[1]
     ax.set_ylabel("leg length L (m)")
-    if not _plot_ref(ax, data, "L"):
-        _missing(ax, "planned L")
+    have = _plot_ref(ax, data, "L")
+    if m is not None:
+        ax.plot(m["t"], m["L"], color="C0", lw=1, label="measured")
+        have = True
+    if not have:
+        _missing(ax, "L")
 
     ax = axs[2]
     ax.set_ylabel("normal force (N)")
@@ -137,6 +148,8 @@ def _fig6(data, path):
         t, _ = odom_time(od)
         ax.plot(t, od["pos"][:, 0], color="0.5", lw=1, label="pelvis x (/odom)")
         have = True
+    if m is not None:
+        ax.plot(m["t"], m["x_com"], color="C0", lw=1, label="measured x_com")
     if ce is not None and len(ce["t"]):
         ax.plot(ce["t"], ce["com_pos"][:, 0], "o", color="C0", label="COM x (contact events)")
         have = True

@@ -1,0 +1,60 @@
+#!/usr/bin/env python3
+"""Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
+measured over the stepping loop from the bag's /clock log times (wall-clock receive times), start-up
+reported apart.  Prints a table.
+
+    .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+FLIP = Path(__file__).resolve().parent / "flip"
+
+
+def one_run(kind: str, out: Path, extra: list[str]) -> dict:
+    t0 = time.perf_counter()
+    rc = subprocess.run([sys.executable, str(FLIP), "run", kind, "--out", str(out), *extra],
+                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
+    total = time.perf_counter() - t0
+    s = json.loads((out / "summary.json").read_text())
+    run = json.loads((out / "run.json").read_text())
+    tick = s.get("tsc_tick_us") or {}
+    return {"exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
+            "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
+            "rtf": s.get("real_time_factor"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
+            "process_total_s": total}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kind", default="backflip", choices=["backflip", "frontflip", "hop"])
+    ap.add_argument("--runs", type=int, default=2)
+    ap.add_argument("--motor-speed-scale", type=float)
+    a = ap.parse_args()
+    extra = ["--motor-speed-scale", str(a.motor_speed_scale)] if a.motor_speed_scale else []
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(a.runs):
+            rows.append(one_run(a.kind, Path(tmp) / f"run{i}", extra))
+    print(f"flip run {a.kind}: every node its own process, lockstep at 2 kHz sim time")
+    print("| run | outcome | graph ready s | sim s | stepping wall s | RTF (stepping) | tsc tick median/p99 us | whole command s |")
+    print("|-----|---------|---------------|-------|-----------------|----------------|------------------------|-----------------|")
+    for i, r in enumerate(rows):
+        print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
+              f"{r['tick_med']}/{r['tick_p99']} | {r['process_total_s']:.1f} |")
+    rtf = [r["rtf"] for r in rows if r["rtf"]]
+    if rtf:
+        print(f"median real-time factor over the stepping loop: {statistics.median(rtf):.3f} (target >= 1.5)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

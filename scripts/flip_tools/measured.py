@@ -1,0 +1,45 @@
+"""The paper's outputs as the robot actually had them, recomputed from a bag: /joint_states and
+/odom (same stamps) through the model on /robot_description, with the controller's own output
+definitions (tsc_controller.outputs: centroidal pitch momentum, leg length, COM, flywheel
+momentum).  For plots of planned vs. measured; the landing verdict does not use it (it reads /odom
+only)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .bag import BagData
+
+
+def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
+    """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
+    when the bag lacks the model or the state."""
+    desc, js, od = data.get("/robot_description"), data.get("/joint_states"), data.get("/odom")
+    if not desc or js is None or od is None or not len(js["t"]) or not len(od["t"]):
+        return None
+    mjcf = desc["data"][-1] if isinstance(desc.get("data"), list) else desc.get("data")
+    if not mjcf:
+        return None
+    from tsc_controller import outputs as O
+    from tsc_controller.dynamics import Dynamics
+    from tsc_controller.state import StateConverter
+    dyn = Dynamics(mjcf)
+    conv = StateConverter(dyn)
+    outs = {"H_pitch": O.CentroidalPitchMomentum("H_pitch"), "L": O.LegLength("L"),
+            "x_com": O.ComPosition("com", axes=(0, 1)), "H_flywheel": O.FlywheelMomentum("H_flywheel")}
+    od_index = {round(float(t), 6): i for i, t in enumerate(od["t"])}
+    res = {k: [] for k in ("t", *outs)}
+    next_t = -np.inf
+    for i, t in enumerate(js["t"]):
+        if t < next_t:
+            continue
+        j = od_index.get(round(float(t), 6))
+        if j is None or np.isnan(js["pos"][i]).any():
+            continue
+        next_t = t + every_s
+        q, v = conv.from_ros(js["names"], js["pos"][i], js["vel"][i], od["pos"][j],
+                             od["quat"][j], od["lin"][j], od["ang"][j])
+        dyn.update(q, v)
+        res["t"].append(float(t))
+        for k, o in outs.items():
+            res[k].append(float(o.evaluate(dyn)[0][0]))
+    return {k: np.asarray(v) for k, v in res.items()} if res["t"] else None
