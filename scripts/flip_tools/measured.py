@@ -12,7 +12,7 @@ from .bag import BagData
 
 def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
-    when the bag lacks the model or the state."""
+    when the bag lacks the state or a model of this robot."""
     desc, js, od = data.get("/robot_description"), data.get("/joint_states"), data.get("/odom")
     if not desc or js is None or od is None or not len(js["t"]) or not len(od["t"]):
         return None
@@ -22,8 +22,11 @@ def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     from tsc_controller import outputs as O
     from tsc_controller.dynamics import Dynamics
     from tsc_controller.state import StateConverter
-    dyn = Dynamics(mjcf)
-    conv = StateConverter(dyn)
+    try:
+        dyn = Dynamics(mjcf)
+        conv = StateConverter(dyn)
+    except Exception:  # noqa: BLE001 - a description that is not this robot's (e.g. a stand-in's)
+        return None
     outs = {"H_pitch": O.CentroidalPitchMomentum("H_pitch"), "L": O.LegLength("L"),
             "x_com": O.ComPosition("com", axes=(0, 1)), "H_flywheel": O.FlywheelMomentum("H_flywheel")}
     od_index = {round(float(t), 6): i for i, t in enumerate(od["t"])}
