@@ -21,6 +21,13 @@ event (the paper plans them at those events).  Missing or late references never 
 without a command: JUMPING without lift-off past its end (+ ``grace``) falls back to STANDING, FLIGHT
 without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
 the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs.
+
+Per-foot contact (LANDING, STANDING): a foot that has come off the ground (or rocked onto toe or heel)
+while its leg is unloaded loses its contact rows in the QP and gets a swing output (toe and heel back
+to where it stood, flat, aimed slightly below the ground) until it is down again; with both feet off,
+both keep their contact rows (a rebound).  The fallback landing lasts until its own profiles end
+(leg catch and rise, momentum removal) and moves the COM target against the centre-of-pressure offset
+the momentum removal needs, and with the feet where they stand now.
 """
 from __future__ import annotations
 
@@ -147,13 +154,18 @@ DEFAULT_GAINS = {
     # name: (weight, kp, kd)
     "H_pitch": (1.0, 10.0, 0.0),
     "L": (10.0, 100.0, 20.0),
-    "com": (10.0, 100.0, 20.0),
+    # COM weight 100: with 10, per unit of pitch moment a COM error cost ~100x less than an H_pitch
+    # error, so the QP took the landing's momentum removal from horizontal ground forces
+    # (moment h F_x) and let the COM run off the feet (measured: x_com 0.5 m off after a 0.6 m drop
+    # with the flywheel at 150 rad/s; lands with 100)
+    "com": (100.0, 100.0, 20.0),
     "pelvis": (1.0, 100.0, 20.0),
     "H_flywheel": (1.0, 20.0, 0.0),
     "L_leg": (10.0, 100.0, 20.0),
     "joints": (1.0, 100.0, 20.0),
     "beta_leg": (10.0, 100.0, 20.0),
     "toe_pitch": (1.0, 100.0, 20.0),
+    "swing": (10.0, 400.0, 40.0),
 }
 
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
@@ -169,7 +181,10 @@ class ControllerConfig:
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
     rigid_springs: bool = True
     motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
-    spring_rate_zero: bool = True     # with rigid springs, feed the controller zero spring rates
+    spring_rate_zero: bool = False    # with rigid springs, feed the controller zero spring rates (True: the
+                                      # leaf-spring modes go undamped; measured: a 75 N, 0.1 s lateral push
+                                      # then rocks the robot left-right until it falls, and flip landings
+                                      # fail the same way; with the measured rates it stands)
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
     grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
@@ -178,7 +193,15 @@ class ControllerConfig:
     catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
     landing_moment: float = 15.0      # N*m, mean pitch moment the fallback landing uses to remove H_pitch
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
+    com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
+    per_foot_contact: bool = True     # on the ground, a foot that has come off it loses its contact rows
+    foot_lift: float = 0.008          # m above the ground at which a foot counts as off it
+    foot_land: float = 0.004          # m above the ground at which it counts as back on it
+    foot_loaded_spring: float = 8.0   # N*m shin-spring torque above which a leg counts as loaded (on the ground)
+    swing_depth: float = 0.02         # m below the ground the swing foot is aimed at
+    foot_tilt: float = 0.01           # m: a foot whose higher end is this much above foot_lift is rocked onto
+                                      # toe or heel, not in flat contact (unless its leg is loaded)
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
 
 
@@ -211,6 +234,10 @@ class Controller:
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
         self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
         self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
+        self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
+        self.feet_contact = [True, True]   # per-foot contact state in the ground domains
+        self._foot_anchor = None            # per foot: toe, heel world positions where it stands
+        self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.domain = Domain.STANDING
         self.t_enter = None
@@ -309,13 +336,29 @@ class Controller:
                                                            self.cfg.L_min))
         s = self._stand
         T, dt = self.cfg.blend_time, t - s["t0"]
+        # the pitch momentum a landing brings (the flywheel's, after a flip) is taken out at a
+        # moment the feet can give (cfg.landing_moment), not at once
+        H = quintic(s["H0"], np.zeros(1), s["TH"], dt)
+        com = [np.array(x, float) for x in quintic(s["c0"], s["c1"], T, dt, s["cd0"])]
+        # That moment comes from the centre of pressure offset from the COM, dH/dt = -(x_cop - x_com) m g:
+        # the COM is moved the other way by com_shift of that offset, so that the centre of pressure
+        # stays inside the feet (with the COM over the middle of the feet the moment needs the centre
+        # of pressure near toe or heel, and a COM target that fights it makes the QP take the moment
+        # from horizontal forces instead, which drive the COM off the feet).
+        k = self.cfg.com_shift / (self.dyn.mass * 9.81)
+        com[0][0] += k * float(H[1][0])
+        com[1][0] += k * float(H[2][0])
+        if self._foot_anchor is not None:
+            # the feet creep on the ground during a hard landing (measured: 10-20 cm over 1.5 s after a
+            # backflip, until the COM was behind the heels): the COM follows where they stand now
+            a = self._foot_anchor
+            mid = 0.25 * (a[0][:2] + a[0][3:5] + a[1][:2] + a[1][3:5])
+            com[0][:2] += mid - s["c1"][:2]
         return {
-            # the pitch momentum a landing brings (the flywheel's, after a flip) is taken out at a
-            # moment the feet can give (cfg.landing_moment), not at once
-            "H_pitch": Desired(*quintic(s["H0"], np.zeros(1), s["TH"], dt)),
+            "H_pitch": Desired(*H),
             "L": Desired(*leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), dt,
                                     self.cfg.catch_decel, self.cfg.L_min)),
-            "com": Desired(*quintic(s["c0"], s["c1"], T, dt, s["cd0"])),
+            "com": Desired(*com),
             "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
         }
 
@@ -397,6 +440,56 @@ class Controller:
         om_cl = om_des - self.cfg.k_theta * (theta - th_des)
         return H_pitch - om_cl * I_rest
 
+    def _update_feet(self):
+        """Per-foot contact (LANDING, STANDING) from the kinematics and the shin springs: a foot whose
+        lower end is ``foot_lift`` above the ground (lowest foot point when the domain began, then
+        following the loaded feet), or whose higher end is ``foot_tilt`` more, and whose leg's shin
+        spring carries less than ``foot_loaded_spring``, is off it; back on it below ``foot_land``.  A foot on the ground keeps its anchor (toe, heel positions, at ground height);
+        an airborne foot keeps the last one as its swing target.  The QP's flat-foot contact for a foot
+        that has unloaded and lifted is a model of something that is not there: torques computed
+        for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
+        slide 9 cm and the robot fall)."""
+        dyn, cfg = self.dyn, self.cfg
+        P = [np.concatenate([dyn.point(f"{s}_toe")[0], dyn.point(f"{s}_heel")[0]]) for s in SIDES]
+        if self._foot_anchor is None:
+            self._z_ground = float(min(min(p[2], p[5]) for p in P))
+            self._foot_anchor = [p.copy() for p in P]
+            self.feet_contact = [True, True]
+        # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
+        # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
+        iq = dyn.spring_q[[0, 2]]
+        tau_shin = -dyn.spring_k[[0, 2]] * (dyn.q[iq] - dyn.q_spring[iq])
+        for k, p in enumerate(P):
+            # the flat-foot contact needs both ends down: a foot rocked onto its toe or heel is not in it
+            h = max(min(p[2], p[5]), max(p[2], p[5]) - cfg.foot_tilt) - self._z_ground
+            if self.feet_contact[k]:
+                if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
+                    self.feet_contact[k] = False
+                else:
+                    self._foot_anchor[k] = p.copy()
+                    if tau_shin[k] >= cfg.foot_loaded_spring:
+                        # the ground height follows the loaded feet (first estimate, at touch-down, is
+                        # a few mm low: the impact pushes the feet into the compliant contact)
+                        self._z_ground += 0.01 * (min(p[2], p[5]) - self._z_ground)
+            elif h < cfg.foot_land:
+                self.feet_contact[k] = True
+
+    def _swing_task(self, outs, des):
+        """Add the swing output of each foot off the ground (only while the other one is on it)."""
+        if all(self.feet_contact) or not any(self.feet_contact):
+            return outs, des, (True, True)
+        outs, des = list(outs), list(des)
+        for k in range(2):
+            if not self.feet_contact[k]:
+                a = self._foot_anchor[k].copy()
+                # back down flat, aimed below the ground: aimed at it, the foot hovered a few mm above
+                # it (the output error balanced against the others) and the robot tipped over on
+                # one line foot
+                a[2] = a[5] = self._z_ground - self.cfg.swing_depth
+                outs.append(self.o_swing[k])
+                des.append(Desired(a, np.zeros(6), np.zeros(6)))
+        return outs, des, tuple(self.feet_contact)
+
     def _task(self, t):
         dom = self.domain
         if dom == Domain.STANDING:
@@ -439,10 +532,19 @@ class Controller:
         self._update_pitch()
         if self.t_enter is None:
             self.t_enter = t
+        if self.domain in (Domain.LANDING, Domain.STANDING):
+            self._update_feet()
+        else:           # JUMPING: the feet leave the ground on purpose at the end of the push-off
+            self._foot_anchor = None
+            self._z_ground = None
+            self.feet_contact = [True, True]
         ground, outs, des = self._task(t)
+        feet = (True, True)
+        if ground:
+            outs, des, feet = self._swing_task(outs, des)
         lb, ub = self.limits.bounds(v[self.dyn.motor_v])
         try:
-            res = self.tsc.solve(outs, des, ground, lb, ub)
+            res = self.tsc.solve(outs, des, ground, lb, ub, feet)
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"
@@ -454,7 +556,14 @@ class Controller:
         if res is not None:
             F = res.forces
             info["forces"] = F
-            info["grf"] = (float(F[2] + F[4]), float(F[7] + F[9])) if ground else (0.0, 0.0)
+            if not ground:
+                info["grf"] = (0.0, 0.0)
+            elif all(feet):
+                info["grf"] = (float(F[2] + F[4]), float(F[7] + F[9]))
+            else:
+                fn = float(F[2] + F[4])
+                info["grf"] = (fn, 0.0) if feet[0] else (0.0, fn)
+            info["feet_contact"] = feet
             info["errors"] = res.y
         else:
             info["grf"] = (0.0, 0.0)

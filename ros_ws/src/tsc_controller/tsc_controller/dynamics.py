@@ -336,26 +336,32 @@ class Dynamics:
         dc = dall[_CROW, _CPT]
         return Jc, dc
 
-    def constraints(self, ground: bool):
+    def constraints(self, ground: bool, feet=(True, True)):
         """J_{h,v} and Jdot_{h,v} v of a domain.
 
-        Rows: foot contact (10, ground domains only), loop closures (always), then, if
-        ``rigid_springs``, one row per leaf spring (spring acceleration 0; its force is the spring torque
-        the motors must hold).  See the module doc for why the springs are held rigid in the QP model.
+        Rows: foot contact (5 per foot in contact, ground domains only; ``feet`` = (left, right) in
+        contact), loop closures (always), then, if ``rigid_springs``, one row per leaf spring (spring
+        acceleration 0; its force is the spring torque the motors must hold).  See the module doc for
+        why the springs are held rigid in the QP model.
         """
-        c = self._cons.get(ground)
+        feet = tuple(bool(f) for f in feet)
+        key = (bool(ground), feet if ground else None)
+        c = self._cons.get(key)
         if c is not None:
             return c
         Jl, dl = self.loop_constraints()
         Js, ds = [Jl], [dl]
-        if ground:
+        if ground and any(feet):
             Jc, dc = self.contact_constraints()
+            if not all(feet):
+                rows = np.r_[0:5] if feet[0] else np.r_[5:10]
+                Jc, dc = Jc[rows], dc[rows]
             Js.insert(0, Jc)
             ds.insert(0, dc)
         if self.rigid_springs:
             Js.append(self._Jspring)
             ds.append(self._zspring)
-        c = self._cons[ground] = (np.concatenate(Js), np.concatenate(ds))
+        c = self._cons[key] = (np.concatenate(Js), np.concatenate(ds))
         return c
 
 

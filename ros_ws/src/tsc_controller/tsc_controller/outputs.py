@@ -258,3 +258,26 @@ class FootPitch(Output):
             vel += (vt[2] - vh[2]) / ell
         k = 1.0 / len(self.sides)
         return np.array([k * y]), (k * J)[None], np.array([k * dr]), np.array([k * vel])
+
+
+class FootPoints(Output):
+    """Swing foot on the ground: world positions of the toe and heel ends of one foot (6 rows).
+
+    Used while a foot that should be on the ground has come off it (``Controller`` per-foot contact):
+    it is driven back to where it stood, flat, instead of being modelled as still in contact."""
+
+    dim = 6
+
+    def __init__(self, name="foot", side="left", **kw):
+        super().__init__(name, **kw)
+        self.side = side
+
+    def evaluate(self, dyn):
+        ys, Js, ds, vs = [], [], [], []
+        for k in ("toe", "heel"):
+            p, J, d, v, _ = dyn.point(f"{self.side}_{k}")
+            ys.append(p)
+            Js.append(J)
+            ds.append(d)
+            vs.append(v)
+        return np.concatenate(ys), np.vstack(Js), np.concatenate(ds), np.concatenate(vs)

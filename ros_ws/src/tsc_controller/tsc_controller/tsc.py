@@ -43,9 +43,9 @@ class QPResult:
 class ConstrainedDynamics:
     """The affine maps F = A u + b and qddot = Abar u + bbar of one tick (paper eq. (utoF) ff.)."""
 
-    def __init__(self, dyn, ground: bool):
+    def __init__(self, dyn, ground: bool, feet=(True, True)):
         self.ground = ground
-        J, dJv = dyn.constraints(ground)
+        J, dJv = dyn.constraints(ground, feet)
         Minv = dyn.Minv
         nu = dyn.nu
         MiJ = Minv @ J.T                              # M^-1 J^T
@@ -137,7 +137,9 @@ class TSC:
         self.solver_name = solver
         self._solvers = {}
         self.C, self.c = grf_constraints(2, mu, f_min, cop_margin)
+        self.C1, self.c1 = grf_constraints(1, mu, f_min, cop_margin)     # one foot in contact
         self._lo = np.full(len(self.c), -1e20)
+        self._lo1 = np.full(len(self.c1), -1e20)
         self._w = {}
 
     def _solver(self, n_in):
@@ -146,13 +148,16 @@ class TSC:
             s = self._solvers[n_in] = SOLVERS[self.solver_name](self.dyn.nu, n_in)
         return s
 
-    def solve(self, outputs, desired, ground: bool, u_lb, u_ub) -> QPResult:
-        """One QP: outputs (list of Output), desired (list of Desired, same order)."""
+    def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True)) -> QPResult:
+        """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
+        right): which feet are in contact on the ground (both by default)."""
         dyn = self.dyn
         t_a = time.perf_counter()
-        dyn.constraints(ground)
+        n_feet = sum(bool(f) for f in feet) if ground else 0
+        ground = ground and n_feet > 0
+        dyn.constraints(ground, feet)
         t_b = time.perf_counter()
-        cd = ConstrainedDynamics(dyn, ground)
+        cd = ConstrainedDynamics(dyn, ground, feet)
         Js, rhs, errs = [], [], {}
         for out, des in zip(outputs, desired):
             y, Jy, drift, ydot = out.evaluate(dyn)
@@ -180,10 +185,10 @@ class TSC:
         H.flat[::H.shape[0] + 1] += self.reg
         g = WAt @ cB
         if ground:
-            nf = self.C.shape[1]
-            C = self.C @ cd.A[:nf]
-            up = self.c - self.C @ cd.b[:nf]
-            lo = self._lo
+            Cg, cg, lo = (self.C, self.c, self._lo) if n_feet == 2 else (self.C1, self.c1, self._lo1)
+            nf = Cg.shape[1]
+            C = Cg @ cd.A[:nf]
+            up = cg - Cg @ cd.b[:nf]
         else:
             C, lo, up = None, None, None
         t0 = time.perf_counter()

@@ -1,0 +1,77 @@
+"""Closed loop without ROS: landing after a full somersault (fallback landing of tsc_controller).
+
+The robot is launched 0.1 m above standing height with the whole-body pitch rate of a 2π rotation in
+T, runs FLIGHT with a cubic pelvis-pitch reference (momentum transmission into the flywheel), touches
+down upright with 20–25 kg·m²/s of centroidal pitch momentum in the flywheel and a sink rate of
+~3.3 m/s, and must land with no LANDING reference (fallback: leg catch, momentum removal at
+``landing_moment`` with the COM shifted against the needed centre of pressure, per-foot contact) and
+end standing: pelvis at its standing height, upright, nothing but the feet on the ground."""
+import math
+
+import numpy as np
+import pytest
+
+from cassie_flip_sim.model import export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from tsc_controller import Controller, Domain, SampledReference, StateConverter
+
+
+def launch(sim, sign, T, h=0.1):
+    qpos = sim.standing_qpos.copy()
+    qpos[2] += h
+    vz = (9.81 * T * T / 2 - h) / T                 # back at standing height after T
+    w = sign * 2 * math.pi / T
+    qvel = np.zeros(sim.model.nv)
+    qvel[2], qvel[4] = vz, w
+    sim.reset(qpos, qvel, in_contact=False)
+    c, p = sim.com_position(), sim.data.qpos[:3].copy()
+    qvel[0:3] = np.array([0.0, 0.0, vz]) + np.cross([0.0, w, 0.0], p - c)   # rigid rotation about the COM
+    sim.reset(qpos, qvel, in_contact=False)
+    return w
+
+
+def flight_reference(sign, w0, T):
+    ts = np.linspace(0.0, T, 200)
+    a2, a3 = np.linalg.solve([[T ** 2, T ** 3], [2 * T, 3 * T ** 2]], [sign * 2 * math.pi - w0 * T, -w0])
+    th = w0 * ts + a2 * ts ** 2 + a3 * ts ** 3
+    dth = w0 + 2 * a2 * ts + 3 * a3 * ts ** 2
+    ddth = 2 * a2 + 6 * a3 * ts
+    return SampledReference(Domain.FLIGHT, ts, ["phi_pitch"], th[:, None], dth[:, None], ddth[:, None],
+                            parameters=dict(flight_time=T, T1=0.75 * T, beta_liftoff=0.0))
+
+
+def run_flip(sign, T, t_end=4.0):
+    sim = Simulator()
+    z_stand = float(sim.standing_qpos[2])
+    w0 = launch(sim, sign, T)
+    ctl = Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
+    ctl.set_reference(flight_reference(sign, w0, T))
+    H_td, fell = None, None
+    for k in range(int(t_end / sim.timestep)):
+        for ev in sim.pop_events():
+            ctl.on_contact_event(int(ev.kind), ev.time)
+            if H_td is None and int(ev.kind) == 1:
+                H_td = sim.centroidal_pitch_momentum()
+        q, v = sc.from_simulator(sim)
+        u, _ = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        if k % 20 == 0 and sim.body_contacts():
+            fell = sim.time
+            break
+    return dict(sim=sim, ctl=ctl, z_stand=z_stand, H_td=H_td, fell=fell)
+
+
+@pytest.mark.parametrize("sign,T", [(-1, 0.7), (1, 0.6)], ids=["backflip_0.7s", "frontflip_0.6s"])
+def test_flip_lands_and_stands(sign, T):
+    r = run_flip(sign, T)
+    sim, ctl = r["sim"], r["ctl"]
+    assert r["H_td"] is not None and abs(r["H_td"]) > 15.0      # touched down with the flip's momentum
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert ctl.domain == Domain.STANDING
+    p, (w, x, y, z) = sim.pelvis_pose()
+    assert abs(p[2] - r["z_stand"]) < 0.03
+    tilt = np.degrees(np.arccos(np.clip(1 - 2 * (x * x + y * y), -1, 1)))
+    assert tilt < 10.0
+    assert abs(sim.centroidal_pitch_momentum()) < 1.0            # the flywheel's momentum is gone
