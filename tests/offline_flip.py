@@ -26,7 +26,8 @@ def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
                             start_time=start_time, plan_id=plan_id, parameters=ref.parameters)
 
 
-def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, **request):
+def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
+        **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events."""
     sim = sim or Simulator()
     ctl = controller or Controller(export_mjcf())
@@ -47,6 +48,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 r = session.flight_reference(st)
             elif int(ev.kind) == 1:
                 r = session.landing_reference(st)
+                if not landing_reference:
+                    r = None
             if r is not None:
                 ctl.set_reference(to_sampled(r, ev.time))
         q, v = sc.from_simulator(sim)

@@ -4,6 +4,8 @@ import math
 import numpy as np
 import pytest
 
+from fslip_planner import flight as Fl
+
 from fslip_planner import plan as P
 from fslip_planner.landing import LandingProblem
 
@@ -64,7 +66,11 @@ def test_flight_reference(flow):
     assert th[-1] == pytest.approx(-2 * math.pi - beta, abs=1e-9) and om[-1] == pytest.approx(0, abs=1e-9)
     L, _, _ = fr.column("L")
     L_lo = s.result.lift_off["L"]
-    assert L.min() < L_lo - 0.1                                           # tucked
+    T1 = fr.parameters["T1"]
+    depth = min(L_lo - 0.6, Fl.TUCK_MAX_ACC * (0.5 * T1) ** 2 / 5.77)      # tucked, as deep as its time allows
+    assert L.min() == pytest.approx(L_lo - depth, abs=1e-3) and depth > 0.03
+    _, _, Ldd = fr.column("L")
+    assert np.abs(Ldd).max() <= 1.01 * Fl.TUCK_MAX_ACC
     i1 = np.searchsorted(fr.t, fr.parameters["T1"])
     np.testing.assert_allclose(L[i1:], L_lo, atol=1e-6)                    # extended again by T1
     _consistent(fr, "phi_pitch", 0.05)

@@ -21,6 +21,7 @@ import numpy as np
 from . import fslip as F
 
 SIGN = {"backflip": -1.0, "frontflip": 1.0, "hop": 0.0}
+TUCK_MAX_ACC = 30.0   # m/s^2, peak leg-length acceleration of the tuck
 
 
 def cubic(y0, v0, y1, v1, T, t):
@@ -58,10 +59,18 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     if kind not in SIGN:
         raise ValueError(f"unknown kind {kind!r}")
     T = float(F.flight_time(max(zdot, 0.05), platform, g))
+    if SIGN[kind] == 0.0:
+        # a hop turns nothing: no tuck, feet placed and flat from lift-off on (T1 = 0)
+        t1_fraction, L_tuck = 0.0, L_lo
     T1 = t1_fraction * T
+    if T1 > 0.0:
+        # the tuck must fit its time: a min-jerk retraction by d over T1/2 peaks at 5.77 d/(T1/2)^2;
+        # keep it within TUCK_MAX_ACC (a 0.33 s flight would otherwise ask for ~100 m/s^2)
+        L_tuck = max(L_tuck, L_lo - TUCK_MAX_ACC * (0.5 * T1) ** 2 / 5.77)
     theta_T = SIGN[kind] * 2 * math.pi - beta_lo
     n = max(int(math.ceil(T / dt)), 2) + 1
     t = np.linspace(0.0, T, n)
     th = cubic(theta0, omega0, theta_T, 0.0, T, t)
-    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_lo, T1, t)
+    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_lo, T1, t) if T1 > 0.0 else (
+        np.full_like(t, L_lo), np.zeros_like(t), np.zeros_like(t))
     return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)

@@ -168,6 +168,12 @@ DEFAULT_GAINS = {
     "swing": (10.0, 400.0, 40.0),
 }
 
+# JUMPING overrides (name: (weight, kp, kd)): the momentum is the task of the push-off (H_pitch weight 3:
+# with 1, the GRF-shaping QP lets H_pitch chatter and the feet unload early) and the COM must be free
+# to move for it (the landing's COM weight 100 holds the COM against the horizontal forces the
+# flip's momentum comes from)
+JUMPING_GAINS = {"H_pitch": (3.0, 10.0, 0.0), "com": (10.0, 100.0, 20.0)}
+
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
 
@@ -181,10 +187,13 @@ class ControllerConfig:
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
     rigid_springs: bool = True
     motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
-    spring_rate_zero: bool = False    # with rigid springs, feed the controller zero spring rates (True: the
-                                      # leaf-spring modes go undamped; measured: a 75 N, 0.1 s lateral push
-                                      # then rocks the robot left-right until it falls, and flip landings
-                                      # fail the same way; with the measured rates it stands)
+    # domains in which the controller is fed zero leaf-spring rates (rigid-spring model).  JUMPING: the
+    # measured rates, seen through the outputs' J v and drift, make the torques chatter at the spring
+    # frequency and the feet unload early in the push (measured: lift-off 0.08-0.12 s into a 1 s
+    # push).  Not STANDING/LANDING: there the leaf-spring modes then go undamped (a 75 N, 0.1 s lateral
+    # push rocks the robot left-right until it falls, flip landings fail the same way).  Never FLIGHT:
+    # the momenta need every rate.
+    spring_rate_zero_domains: tuple = (1,)
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
     grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
@@ -203,6 +212,12 @@ class ControllerConfig:
     foot_tilt: float = 0.01           # m: a foot whose higher end is this much above foot_lift is rocked onto
                                       # toe or heel, not in flat contact (unless its leg is loaded)
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
+    jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
+    # domain -> w of w ||u - u_prev||^2 in the QP.  JUMPING: without it the torques chatter against the
+    # leaf springs, the contact forces the QP predicts (rigid springs) run ahead of the real ones and the
+    # feet unload 0.1 s into the push; w = 10 gives the planned lift-off time for backflip, frontflip and
+    # hop from two start states (measured offline, tests/offline_flip.py), 3 does not, 100 lifts off late
+    torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 3: 10.0})
 
 
 def _mk(cls, name, gains, key=None, **kw):
@@ -228,6 +243,10 @@ class Controller:
         self.o_com = _mk(O.ComPosition, "com", g, axes=(0, 1))
         self.o_pel = _mk(O.PelvisOrientation, "pelvis", g, axes=("roll", "pitch", "yaw"))
         self.ground_outputs = [self.o_H, self.o_L, self.o_com, self.o_pel]
+        gj = {**g, **cfg.jumping_gains}
+        self.jumping_outputs = [_mk(O.CentroidalPitchMomentum, "H_pitch", gj), _mk(O.LegLength, "L", gj),
+                                _mk(O.ComPosition, "com", gj, axes=(0, 1)),
+                                _mk(O.PelvisOrientation, "pelvis", gj, axes=("roll", "pitch", "yaw"))]
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
         self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
         self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
@@ -382,7 +401,7 @@ class Controller:
             put("pelvis", 0, "phi_roll")
             put("pelvis", 1, "phi_pitch")
             put("pelvis", 2, "phi_yaw")
-        outs = self.ground_outputs
+        outs = self.jumping_outputs if self.domain == Domain.JUMPING else self.ground_outputs
         return outs, [des[o.name] for o in outs]
 
     def _flight_task(self, t):
@@ -520,11 +539,9 @@ class Controller:
         """One TSC tick: returns (u (11,), info dict)."""
         t0 = time.perf_counter()
         self._switch(t)                            # events and references only, no state needed
-        if self.cfg.rigid_springs and self.cfg.spring_rate_zero and self.domain != Domain.FLIGHT:
-            # on the ground the QP holds the leaf springs rigid (dynamics module doc); their measured
-            # rates are the leg's ringing, which that model cannot predict: seen through the outputs'
-            # J v and drift terms they make the torques chatter at the spring frequency.  In flight
-            # they stay: the momenta (H_pitch, the momentum transmission) need every rate.
+        if (self.cfg.rigid_springs and self.domain != Domain.FLIGHT
+                and int(self.domain) in self.cfg.spring_rate_zero_domains):
+            # see ControllerConfig.spring_rate_zero_domains
             v = np.array(v, float)
             v[self.dyn.spring_v] = 0.0
         self.dyn.update(q, v)
@@ -544,7 +561,8 @@ class Controller:
             outs, des, feet = self._swing_task(outs, des)
         lb, ub = self.limits.bounds(v[self.dyn.motor_v])
         try:
-            res = self.tsc.solve(outs, des, ground, lb, ub, feet)
+            w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
+            res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du)
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

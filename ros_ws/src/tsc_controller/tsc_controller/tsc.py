@@ -148,9 +148,11 @@ class TSC:
             s = self._solvers[n_in] = SOLVERS[self.solver_name](self.dyn.nu, n_in)
         return s
 
-    def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True)) -> QPResult:
+    def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
+              w_du: float = 0.0) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
-        right): which feet are in contact on the ground (both by default)."""
+        right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
+        w_du ||u - u_prev||^2 (torque smoothing)."""
         dyn = self.dyn
         t_a = time.perf_counter()
         n_feet = sum(bool(f) for f in feet) if ground else 0
@@ -182,8 +184,10 @@ class TSC:
         t_c = time.perf_counter()
         WAt = cA.T * w                                      # A^T W
         H = WAt @ cA
-        H.flat[::H.shape[0] + 1] += self.reg
+        H.flat[::H.shape[0] + 1] += self.reg + w_du
         g = WAt @ cB
+        if w_du > 0.0 and u_prev is not None:
+            g = g - w_du * np.asarray(u_prev, float)
         if ground:
             Cg, cg, lo = (self.C, self.c, self._lo) if n_feet == 2 else (self.C1, self.c1, self._lo1)
             nf = Cg.shape[1]
