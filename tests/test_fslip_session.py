@@ -165,3 +165,16 @@ def test_premature_liftoff_aborts_the_flip():
     fr2 = s2.flight_reference(P.MeasuredState(1.0 + jr.duration, np.array([0.0, 0.0, 1.0]),
                                               np.array([lo["xdot"], 0.0, lo["zdot"]]), lo["momentum"], lo["beta"], 0.0))
     assert not s2.aborted and fr2.column("phi_pitch")[0][-1] == pytest.approx(-2 * math.pi - lo["beta"])
+
+
+def test_flight_pitch_profile_respects_the_flywheel_torque():
+    """flight.trapezoid: pitch from (θ0, ω0) to θ_T at rest in T with |θ̈| ≤ a (the flywheel's torque
+    over the rest of the body's inertia); None when no such profile exists (then the cubic is used)."""
+    t = np.linspace(0.0, 0.8, 801)
+    th, om, acc = Fl.trapezoid(0.1, -1.0, -2 * math.pi + 0.1, 0.8, 60.0, t)
+    assert th[0] == pytest.approx(0.1) and om[0] == pytest.approx(-1.0)
+    assert th[-1] == pytest.approx(-2 * math.pi + 0.1, abs=1e-3) and om[-1] == pytest.approx(0.0, abs=1e-6)
+    assert np.abs(acc).max() <= 60.0 + 1e-9
+    np.testing.assert_allclose(np.gradient(th, t), om, atol=0.1)
+    # 2π from rest in 0.5 s needs at least 4·2π/0.5² ≈ 100 rad/s²
+    assert Fl.trapezoid(0.0, 0.0, -2 * math.pi, 0.5, 60.0, t) is None

@@ -53,9 +53,61 @@ def tuck_profile(L_lo, L_tuck, L_land, T1, t):
     return tuple(np.where(first, ai, bi) for ai, bi in zip(a, b))
 
 
+def trapezoid(y0, v0, y1, T, a, t):
+    """Rotation profile limited to |ÿ| ≤ a: from (y0, v0) to (y1, 0) in T — ramp to a cruise rate,
+    hold it, ramp to rest (the cruise rate found by bisection).  None if no such profile exists.
+    The flywheel turns the rest of the body at most at τ_max / I_rest; a cubic asks for its peak
+    acceleration 6 Δθ / T² at both ends and saturates the flywheel motor (measured: a 0.48 s backflip
+    flight turned 550° instead of 360°)."""
+    d = y1 - y0
+
+    def area(w):
+        t1 = abs(w - v0) / a
+        t3 = abs(w) / a
+        if t1 + t3 > T:
+            return None
+        return 0.5 * (v0 + w) * t1 + w * (T - t1 - t3) + 0.5 * w * t3
+    span = 4.0 * abs(d) / T + abs(v0) + 1.0
+    grid = np.linspace(-span, span, 4001)
+    f = [None if area(w) is None else area(w) - d for w in grid]
+    w = None
+    for i in range(len(grid) - 1):            # first bracket of a root of area(w) = d
+        fa, fb = f[i], f[i + 1]
+        if fa is not None and fb is not None and fa * fb <= 0.0:
+            a_lo, a_hi = grid[i], grid[i + 1]
+            for _ in range(60):
+                m = 0.5 * (a_lo + a_hi)
+                if (area(m) - d) * fa <= 0.0:
+                    a_hi = m
+                else:
+                    a_lo, fa = m, area(m) - d
+            w = 0.5 * (a_lo + a_hi)
+            break
+    if w is None:
+        return None
+    t1, t3 = abs(w - v0) / a, abs(w) / a
+    s1, s3 = np.sign(w - v0) * a, -np.sign(w) * a
+    t = np.clip(np.asarray(t, float), 0.0, T)
+    y, yd, ydd = np.empty_like(t), np.empty_like(t), np.empty_like(t)
+    y_t1 = y0 + v0 * t1 + 0.5 * s1 * t1 ** 2
+    t2 = T - t3
+    y_t2 = y_t1 + w * (t2 - t1)
+    for k, tk in enumerate(t):
+        if tk < t1:
+            y[k], yd[k], ydd[k] = y0 + v0 * tk + 0.5 * s1 * tk ** 2, v0 + s1 * tk, s1
+        elif tk < t2:
+            y[k], yd[k], ydd[k] = y_t1 + w * (tk - t1), w, 0.0
+        else:
+            u = tk - t2
+            y[k], yd[k], ydd[k] = y_t2 + w * u + 0.5 * s3 * u ** 2, w + s3 * u, s3
+    return y, yd, ydd
+
+
 def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=0.6,
-                t1_fraction=0.75, dt=0.002, g=F.G):
-    """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T)."""
+                t1_fraction=0.75, dt=0.002, g=F.G, max_body_acc=None):
+    """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T).
+    ``max_body_acc`` (rad/s², the flywheel torque limit over the rest of the body's inertia): the
+    pitch profile is a :func:`trapezoid` within it when one exists, else the paper's cubic."""
     if kind not in SIGN:
         raise ValueError(f"unknown kind {kind!r}")
     T = float(F.flight_time(max(zdot, 0.05), platform, g))
@@ -70,7 +122,11 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     theta_T = SIGN[kind] * 2 * math.pi - beta_lo
     n = max(int(math.ceil(T / dt)), 2) + 1
     t = np.linspace(0.0, T, n)
-    th = cubic(theta0, omega0, theta_T, 0.0, T, t)
+    th = None
+    if max_body_acc is not None and SIGN[kind] != 0.0:
+        th = trapezoid(theta0, omega0, theta_T, T, max_body_acc, t)
+    if th is None:
+        th = cubic(theta0, omega0, theta_T, 0.0, T, t)
     L = tuck_profile(L_lo, min(L_tuck, L_lo), L_lo, T1, t) if T1 > 0.0 else (
         np.full_like(t, L_lo), np.zeros_like(t), np.zeros_like(t))
     return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)

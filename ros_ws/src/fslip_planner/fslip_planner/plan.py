@@ -70,6 +70,10 @@ class Reference:
         return self.value[:, i], self.d_value[:, i], self.dd_value[:, i]
 
 
+#: share of the flywheel torque limit the flight's pitch profile may use (the rest is the feedback's)
+FLYWHEEL_TORQUE_SHARE = 0.7
+
+
 # ------------------------------------------------------------------------------------------ robot
 class _Robot:
     """Per-(flywheel, motor speed scale) constants from the simulator model (cached)."""
@@ -340,8 +344,11 @@ class FlipSession:
             kind, beta, plat = "hop", 0.0, 0.0
             self.t_touchdown = self.landing_end = None
             self.aborted = self.aborted or early or weak
+        p = self.robot.params
+        I_rest = float(p.I(lo["L"])) - self.robot.I_fw
         fp = Fl.flight_plan(kind, float(state.pelvis_pitch), float(state.pelvis_pitch_rate),
-                            float(state.com_velocity[2]), beta, lo["L"], plat)
+                            float(state.com_velocity[2]), beta, lo["L"], plat,
+                            max_body_acc=FLYWHEEL_TORQUE_SHARE * p.tau_max / I_rest)
         self._flight_T = fp["T"]
         th, L = fp["theta"], fp["L"]
         V = np.column_stack([th[0], L[0]])
