@@ -14,43 +14,20 @@ import pytest
 
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
-from tsc_controller import Controller, Domain, SampledReference, StateConverter
+from launched_flip import flight_reference, launch
+from tsc_controller import Controller, Domain, StateConverter
 from tsc_controller.domains import leg_catch
 
 T_FLIGHT = 0.9
 
 
-def launched(sim, sign, T=T_FLIGHT, h=0.4):
-    qpos = sim.standing_qpos.copy()
-    qpos[2] += h
-    vz = (9.81 * T * T / 2 - h) / T                 # lands at standing height after T
-    w = sign * 2 * math.pi / T
-    qvel = np.zeros(sim.model.nv)
-    sim.reset(qpos, qvel, in_contact=False)
-    c, p = sim.com_position(), sim.data.qpos[:3].copy()
-    qvel[0:3] = np.array([0.0, 0.0, vz]) + np.cross([0.0, w, 0.0], p - c)   # rigid rotation about the COM
-    qvel[4] = w                                                             # pelvis pitch rate (local y)
-    sim.reset(qpos, qvel, in_contact=False)
-    return w
-
-
-def flight_reference(sign, w0, T=T_FLIGHT):
-    ts = np.linspace(0.0, T, 200)
-    a2, a3 = np.linalg.solve([[T ** 2, T ** 3], [2 * T, 3 * T ** 2]], [sign * 2 * math.pi - w0 * T, -w0])
-    th = w0 * ts + a2 * ts ** 2 + a3 * ts ** 3
-    dth = w0 + 2 * a2 * ts + 3 * a3 * ts ** 2
-    ddth = 2 * a2 + 6 * a3 * ts
-    return SampledReference(Domain.FLIGHT, ts, ["phi_pitch"], th[:, None], dth[:, None], ddth[:, None],
-                            parameters=dict(flight_time=T, T1=0.75 * T, beta_liftoff=0.0))
-
-
 def run_flight(sign):
     sim = Simulator()
-    w0 = launched(sim, sign)
+    w0 = launch(sim, sign, T_FLIGHT, 0.4)
     ctl = Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
     ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
-    ctl.set_reference(flight_reference(sign, w0))
+    ctl.set_reference(flight_reference(sign, w0, T_FLIGHT))
     fw = sim.model.jnt_dofadr[mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_JOINT, "flywheel")]
     H, fw_speed = [], []
     while sim.time < 2 * T_FLIGHT:

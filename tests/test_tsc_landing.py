@@ -6,44 +6,20 @@ down upright with 20–25 kg·m²/s of centroidal pitch momentum in the flywheel
 ~3.3 m/s, and must land with no LANDING reference (fallback: leg catch, momentum removal at
 ``landing_moment`` with the COM shifted against the needed centre of pressure, per-foot contact) and
 end standing: pelvis at its standing height, upright, nothing but the feet on the ground."""
-import math
 
 import numpy as np
 import pytest
 
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
-from tsc_controller import Controller, Domain, SampledReference, StateConverter
-
-
-def launch(sim, sign, T, h=0.1):
-    qpos = sim.standing_qpos.copy()
-    qpos[2] += h
-    vz = (9.81 * T * T / 2 - h) / T                 # back at standing height after T
-    w = sign * 2 * math.pi / T
-    qvel = np.zeros(sim.model.nv)
-    qvel[2], qvel[4] = vz, w
-    sim.reset(qpos, qvel, in_contact=False)
-    c, p = sim.com_position(), sim.data.qpos[:3].copy()
-    qvel[0:3] = np.array([0.0, 0.0, vz]) + np.cross([0.0, w, 0.0], p - c)   # rigid rotation about the COM
-    sim.reset(qpos, qvel, in_contact=False)
-    return w
-
-
-def flight_reference(sign, w0, T):
-    ts = np.linspace(0.0, T, 200)
-    a2, a3 = np.linalg.solve([[T ** 2, T ** 3], [2 * T, 3 * T ** 2]], [sign * 2 * math.pi - w0 * T, -w0])
-    th = w0 * ts + a2 * ts ** 2 + a3 * ts ** 3
-    dth = w0 + 2 * a2 * ts + 3 * a3 * ts ** 2
-    ddth = 2 * a2 + 6 * a3 * ts
-    return SampledReference(Domain.FLIGHT, ts, ["phi_pitch"], th[:, None], dth[:, None], ddth[:, None],
-                            parameters=dict(flight_time=T, T1=0.75 * T, beta_liftoff=0.0))
+from launched_flip import flight_reference, launch
+from tsc_controller import Controller, Domain, StateConverter
 
 
 def run_flip(sign, T, t_end=4.0):
     sim = Simulator()
     z_stand = float(sim.standing_qpos[2])
-    w0 = launch(sim, sign, T)
+    w0 = launch(sim, sign, T, 0.1)
     ctl = Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
     ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
