@@ -11,7 +11,7 @@ from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 def record(tmp_path, name):
     from flip_tools.bag import load_bag
     out = tmp_path / name
-    r = subprocess.run([sys.executable, str(FLIP), "sim", "--duration", "0.3", "--out", str(out)],
+    r = subprocess.run([sys.executable, str(FLIP), "sim", "--duration", "1.0", "--out", str(out)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     return load_bag(out / "bag", ["/clock", "/joint_states", "/odom"])
