@@ -10,8 +10,6 @@ import json
 import subprocess
 import sys
 
-import pytest
-
 from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
 
@@ -39,22 +37,3 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
                                                                       "tsc": 0}
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
-
-
-def test_backflip_runs_through_the_graph_and_the_bag_tells(tmp_path):
-    """The jump starts at the sim time the request arrives (+ a lead), which depends on wall-clock
-    timing, so the run is not bit-reproducible; what it must always show: the planned jump is
-    executed and leaves the ground backwards, every node ends cleanly, and the verdict comes from
-    the bag.  The deterministic version of the jump is tests/test_offline_jump.py."""
-    from flip_tools.bag import load_bag
-    r, s, out = run_flip(tmp_path, "backflip")
-    assert r.returncode in (0, 1), r.stdout + r.stderr                # a verdict, not an infrastructure failure
-    assert s["response"]["accepted"] is True and s["response"]["liftoff_pitch_rate"] < 0
-    assert all(p["returncode"] == 0 for p in s["processes"].values())
-    refs = load_bag(out / "bag", ["/fslip/reference"])["/fslip/reference"]["refs"]
-    assert [x["domain"] for x in refs][:3] == [1, 2, 3]                # jumping, flight at lift-off, landing
-    jump = refs[0]
-    lo = events(s, "LIFT_OFF")
-    assert lo and lo[0] > jump["start_time"]
-    assert s["net_rotation_deg"] < -90                                  # turned backwards
-    assert s["outcome"] in ("landed", "fell", "body_contact", "under_rotated", "over_rotated", "not_at_rest")
