@@ -2,7 +2,8 @@
 controller as the node graph does): the robot follows the FSLIP jumping plan to its end — lift-off
 when the plan ends, not earlier (the torque-only QP chattering against the leaf springs used to
 unload the feet 0.1 s into the push) — and, for a backflip, turns backwards through most of a
-somersault in the air.  (It does not land yet.)"""
+somersault in the air.  (With the published motors its flight is too short to land; see
+test_offline_flip.py for the somersault robot, which lands.)"""
 import pytest
 
 import offline_flip as of

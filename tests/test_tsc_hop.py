@@ -51,7 +51,7 @@ def hop_run():
     sc = StateConverter(ctl.dyn)
     z0 = sim.pelvis_pose()[0][2]
     log = dict(t=[], z=[], dom=[], fn=[], events=[])
-    for k in range(int(4.5 / sim.timestep)):
+    for k in range(int(5.5 / sim.timestep)):
         if k == int(0.8 / sim.timestep):      # the reference arrives ahead of its start time
             ctl.set_reference(hop_reference(ctl.cfg.L_stand, 1.0))
         for ev in sim.pop_events():
@@ -90,7 +90,7 @@ def test_hop_flight_has_feet_off(hop_run):
 
 def test_hop_lands_and_stands(hop_run):
     sim = hop_run["sim"]
-    assert len(hop_run["z"]) == int(4.5 / sim.timestep), "fell"
+    assert len(hop_run["z"]) == int(5.5 / sim.timestep), "fell"
     assert abs(hop_run["z"][-1]) < 0.01
     p, (w, x, y, z) = sim.pelvis_pose()
     tilt = np.degrees(np.arccos(np.clip(1 - 2 * (x * x + y * y), -1, 1)))

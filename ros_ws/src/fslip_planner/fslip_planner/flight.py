@@ -104,10 +104,15 @@ def trapezoid(y0, v0, y1, T, a, t):
 
 
 def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=0.6,
-                t1_fraction=0.75, dt=0.002, g=F.G, max_body_acc=None):
+                t1_fraction=0.75, dt=0.002, g=F.G, max_body_acc=None, hard_body_acc=None, L_land=None):
     """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T).
     ``max_body_acc`` (rad/s², the flywheel torque limit over the rest of the body's inertia): the
-    pitch profile is a :func:`trapezoid` within it when one exists, else the paper's cubic."""
+    pitch profile is a :func:`trapezoid` within it when one exists; else, with ``hard_body_acc`` (the
+    full torque limit over that inertia), the trapezoid of the least acceleration up to it that turns
+    the body in T (a bang-bang turn needs 4 Δθ / T², the cubic 6 Δθ / T² at both ends: measured, a
+    0.69 s backflip plan fell back to the cubic, asked 83 rad/s² ≈ 220 N·m of a 195 N·m flywheel at
+    the end and over-rotated by 1.6 rad); else the paper's cubic.  ``L_land``: leg length at
+    touch-down (default: the lift-off length)."""
     if kind not in SIGN:
         raise ValueError(f"unknown kind {kind!r}")
     T = float(F.flight_time(max(zdot, 0.05), platform, g))
@@ -125,8 +130,20 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     th = None
     if max_body_acc is not None and SIGN[kind] != 0.0:
         th = trapezoid(theta0, omega0, theta_T, T, max_body_acc, t)
+        if th is None and hard_body_acc is not None and hard_body_acc > max_body_acc:
+            t_chk = np.array([0.0])
+            if trapezoid(theta0, omega0, theta_T, T, hard_body_acc, t_chk) is not None:
+                lo, hi = max_body_acc, hard_body_acc
+                for _ in range(20):
+                    mid = 0.5 * (lo + hi)
+                    if trapezoid(theta0, omega0, theta_T, T, mid, t_chk) is None:
+                        lo = mid
+                    else:
+                        hi = mid
+                th = trapezoid(theta0, omega0, theta_T, T, min(1.02 * hi, hard_body_acc), t)
     if th is None:
         th = cubic(theta0, omega0, theta_T, 0.0, T, t)
-    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_lo, T1, t) if T1 > 0.0 else (
+    L_land = L_lo if L_land is None else min(L_lo, L_land)
+    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_land, T1, t) if T1 > 0.0 else (
         np.full_like(t, L_lo), np.zeros_like(t), np.zeros_like(t))
     return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)

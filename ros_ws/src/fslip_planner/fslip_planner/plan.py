@@ -72,6 +72,11 @@ class Reference:
 
 #: share of the flywheel torque limit the flight's pitch profile may use (the rest is the feedback's)
 FLYWHEEL_TORQUE_SHARE = 0.7
+#: touch-down leg length = standing length + this (m), not the lift-off length: a leg nearly straight
+#: at touch-down (0.98 m) cannot brake the fall — measured after a backflip (motor speed scale 3,
+#: apex 1.3 m, touch-down at 2.7 m/s): knee torques ~0, the feet unloaded 70 ms after touch-down and
+#: the legs folded at the fall speed; at 0.90 m the fall was caught (2.45 -> 0.6 m/s in 0.1 s)
+LANDING_LEG_EXTENSION = 0.04
 
 
 # ------------------------------------------------------------------------------------------ robot
@@ -348,7 +353,9 @@ class FlipSession:
         I_rest = float(p.I(lo["L"])) - self.robot.I_fw
         fp = Fl.flight_plan(kind, float(state.pelvis_pitch), float(state.pelvis_pitch_rate),
                             float(state.com_velocity[2]), beta, lo["L"], plat,
-                            max_body_acc=FLYWHEEL_TORQUE_SHARE * p.tau_max / I_rest)
+                            max_body_acc=FLYWHEEL_TORQUE_SHARE * p.tau_max / I_rest,
+                            hard_body_acc=p.tau_max / I_rest,
+                            L_land=self.robot.L0 + LANDING_LEG_EXTENSION)
         self._flight_T = fp["T"]
         th, L = fp["theta"], fp["L"]
         V = np.column_stack([th[0], L[0]])

@@ -166,6 +166,7 @@ DEFAULT_GAINS = {
     "beta_leg": (10.0, 100.0, 20.0),
     "toe_pitch": (1.0, 100.0, 20.0),
     "swing": (10.0, 400.0, 40.0),
+    "pitch": (10.0, 100.0, 20.0),
 }
 
 # JUMPING overrides (name: (weight, kp, kd)): the momentum is the task of the push-off (H_pitch weight 3:
@@ -200,24 +201,61 @@ class ControllerConfig:
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
     catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
-    landing_moment: float = 15.0      # N*m, mean pitch moment the fallback landing uses to remove H_pitch
+    landing_moment: float = 12.0      # N*m, mean pitch moment the fallback landing uses to remove H_pitch
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
+    # FLIGHT with a planned pelvis pitch (``phi_pitch``): track it as an output of its own (value, rate
+    # and acceleration, the QP's full dynamics finding the flywheel torque) instead of eq.
+    # (momentumTrans)'s flywheel momentum.  Measured, backflip with leg motors 3x faster and a 1.3 m
+    # apex (0.54 s flight; tests/test_offline_flight.py): touch-down 0.12 rad past -2pi at -1.8 rad/s,
+    # against 0.21 rad short at -6.8 rad/s with eq. (momentumTrans), whose rate regulation misses what
+    # the legs' motion relative to the pelvis does to it.  Needs the FLIGHT torque smoothing (below).
+    flight_pitch_output: bool = True
+    # FLIGHT after T1: the foot placement (a world leg angle for the pelvis at its final pitch) is aimed
+    # through the measured pelvis pitch, i.e. the legs ride with the pelvis until it gets there.  Aimed
+    # at the world angle from T1 on, with the body still ~0.8 rad short, the legs swung ~50 deg relative
+    # to the pelvis in 0.1 s and threw it round (measured backflip: +1.6 rad over-rotation).
+    flight_legs_on_pelvis: bool = True
+    # LANDING: track the planner's landing re-solve (paper §III-C) or land with the controller's own
+    # profiles (leg catch, bounded momentum removal).  Measured (tests/offline_flip.py, backflip,
+    # motor speed scale 3, apex 1.3 m): tracking the re-solve fell 0.26 s after touch-down (its momentum
+    # swings through zero, -20 -> +29 -> 0 kg*m^2/s, because the FSLIP flywheel torque also pushes the
+    # point mass), the controller's own landing stood up.
+    track_landing_reference: bool = False
+    catch_slack: float = 0.1          # m/s: the landing's leg catch re-anchors on the body's sink rate (_leg_catch)
+    moment_ramp: float = 0.3          # s over which the landing's momentum-removal moment ramps in
     per_foot_contact: bool = True     # on the ground, a foot that has come off it loses its contact rows
     foot_lift: float = 0.008          # m above the ground at which a foot counts as off it
     foot_land: float = 0.004          # m above the ground at which it counts as back on it
     foot_loaded_spring: float = 8.0   # N*m shin-spring torque above which a leg counts as loaded (on the ground)
     swing_depth: float = 0.02         # m below the ground the swing foot is aimed at
-    foot_tilt: float = 0.01           # m: a foot whose higher end is this much above foot_lift is rocked onto
-                                      # toe or heel, not in flat contact (unless its leg is loaded)
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
     jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
     # domain -> w of w ||u - u_prev||^2 in the QP.  JUMPING: without it the torques chatter against the
     # leaf springs, the contact forces the QP predicts (rigid springs) run ahead of the real ones and the
     # feet unload 0.1 s into the push; w = 10 gives the planned lift-off time for backflip, frontflip and
-    # hop from two start states (measured offline, tests/offline_flip.py), 3 does not, 100 lifts off late
-    torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 3: 10.0})
+    # hop from two start states (measured offline, tests/offline_flip.py), 3 does not, 100 lifts off late.
+    # FLIGHT: with the pelvis pitch output the torques chattered and rang the leaf springs (+-0.06 rad),
+    # the legs stretched 0.08 m and touched down nearly straight.  LANDING: 3 / 10 / 30 landed a backflip
+    # from 0 / 5 / 3 of 6 start times.
+    torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
+
+
+class SagittalPitch(O.Output):
+    """Unwrapped sagittal pelvis pitch theta (see Controller._update_pitch), degree 2:
+    theta_dot = e_y^T R omega_local (the world-y angular velocity), drift 0 (omega x omega = 0)."""
+
+    def __init__(self, name="pitch", controller=None, **kw):
+        super().__init__(name, **kw)
+        self._ctl = controller
+
+    def evaluate(self, dyn):
+        b = dyn.model.idx_vs[dyn.base_jid]
+        ey_R = dyn.data.oMi[dyn.base_jid].rotation[1]
+        J = np.zeros((1, dyn.nv))
+        J[0, b + 3:b + 6] = ey_R
+        return np.array([self._ctl.pitch]), J, np.zeros(1), J @ dyn.v
 
 
 def _mk(cls, name, gains, key=None, **kw):
@@ -248,6 +286,7 @@ class Controller:
                                 _mk(O.ComPosition, "com", gj, axes=(0, 1)),
                                 _mk(O.PelvisOrientation, "pelvis", gj, axes=("roll", "pitch", "yaw"))]
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
+        self.o_pitch = _mk(SagittalPitch, "pitch", g, controller=self)
         self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
         self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
@@ -258,6 +297,7 @@ class Controller:
         self._foot_anchor = None            # per foot: toe, heel world positions where it stands
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
+        self.landing_plan = None
         self.domain = Domain.STANDING
         self.t_enter = None
         self._pending_event = None
@@ -270,7 +310,12 @@ class Controller:
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
-        """Store a reference (the latest per domain wins)."""
+        """Store a reference (the latest per domain wins); a LANDING one only with
+        ``track_landing_reference`` (else it is kept as ``landing_plan`` and the controller's own
+        landing runs)."""
+        if ref.domain == Domain.LANDING and not self.cfg.track_landing_reference:
+            self.landing_plan = ref
+            return
         self.refs[ref.domain] = ref
 
     def on_contact_event(self, kind: int, *args):
@@ -355,16 +400,16 @@ class Controller:
                                                            self.cfg.L_min))
         s = self._stand
         T, dt = self.cfg.blend_time, t - s["t0"]
-        # the pitch momentum a landing brings (the flywheel's, after a flip) is taken out at a
-        # moment the feet can give (cfg.landing_moment), not at once
-        H = quintic(s["H0"], np.zeros(1), s["TH"], dt)
+        H = self._momentum_removal(dt)
         com = [np.array(x, float) for x in quintic(s["c0"], s["c1"], T, dt, s["cd0"])]
         # That moment comes from the centre of pressure offset from the COM, dH/dt = -(x_cop - x_com) m g:
         # the COM is moved the other way by com_shift of that offset, so that the centre of pressure
         # stays inside the feet (with the COM over the middle of the feet the moment needs the centre
         # of pressure near toe or heel, and a COM target that fights it makes the QP take the moment
         # from horizontal forces instead, which drive the COM off the feet).
-        k = self.cfg.com_shift / (self.dyn.mass * 9.81)
+        # (LANDING only: in STANDING the feedback on the momentum's wiggles would move the COM target
+        # about: 1.5 cm height drift in 5 s of standing)
+        k = self.cfg.com_shift / (self.dyn.mass * 9.81) if self.domain == Domain.LANDING else 0.0
         com[0][0] += k * float(H[1][0])
         com[1][0] += k * float(H[2][0])
         if self._foot_anchor is not None:
@@ -373,13 +418,48 @@ class Controller:
             a = self._foot_anchor
             mid = 0.25 * (a[0][:2] + a[0][3:5] + a[1][:2] + a[1][3:5])
             com[0][:2] += mid - s["c1"][:2]
+        L_des = self._leg_catch(t)
         return {
             "H_pitch": Desired(*H),
-            "L": Desired(*leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), dt,
-                                    self.cfg.catch_decel, self.cfg.L_min)),
+            "L": Desired(*L_des),
             "com": Desired(*com),
             "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
         }
+
+    def _leg_catch(self, t):
+        """Leg length of the landing (:func:`leg_catch` from the leg and sink rate at touch-down),
+        re-anchored on the measured state whenever the body sinks slower than the profile shortens
+        the leg by more than ``catch_slack``: the touch-down impact takes a good part of the sink
+        rate at once (measured after a backflip: 2.4 -> 1.3 m/s in 60 ms), and a leg still shortened
+        at the profile's rate pulled the feet off the ground (F = 0 at 90 ms, a bounce)."""
+        s, cfg = self._stand, self.cfg
+        tL = s.get("tL", s["t0"])
+        des = leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), t - tL, cfg.catch_decel, cfg.L_min)
+        vz = float(self.dyn.hg_lin[2]) / self.dyn.mass
+        if self.domain == Domain.LANDING and vz < 0.0 and float(des[1][0]) < vz - cfg.catch_slack:
+            s["L0"] = self.o_L.evaluate(self.dyn)[0].copy()
+            s["Ld0"], s["tL"] = np.array([vz]), t
+            des = leg_catch(float(s["L0"][0]), vz, float(s["L1"][0]), 0.0, cfg.catch_decel, cfg.L_min)
+        return des
+
+    def _momentum_removal(self, dt):
+        """Desired (H, dH/dt, d2H/dt2) of the pitch momentum a landing brings (the flywheel's, after a
+        flip): taken out at a moment the feet can give, dH/dt = -clip(kp H, +-M), M = ``landing_moment``
+        ramped in over ``moment_ramp``, from the measured H (value = H: no error to correct).
+        A time profile (quintic from the touch-down value) was tried first: the impact took 8 of a
+        backflip's 35 kg*m^2/s and the QP spent the landing's ground forces on a 100 N*m moment to
+        put them back while the legs gave way; a landing that fell behind the profile got kp times its
+        lag asked (180 N*m), the COM was driven off the feet and the robot fell 1.8 s after landing."""
+        kp = self.o_H.kp
+        H_now = float(self.o_H.evaluate(self.dyn)[0][0])
+        ramp = min(1.0, max(dt, 0.0) / self.cfg.moment_ramp) if self.cfg.moment_ramp > 0 else 1.0
+        M = self.cfg.landing_moment * ramp
+        if kp * abs(H_now) >= M:
+            hd = -math.copysign(M, H_now)
+            hdd = -math.copysign(self.cfg.landing_moment / self.cfg.moment_ramp, H_now) if dt < self.cfg.moment_ramp else 0.0
+        else:
+            hd, hdd = -kp * H_now, 0.0
+        return np.array([H_now]), np.array([hd]), np.array([hdd])
 
     def _ground_task(self, t, ref, tau):
         des = self._standing_targets(t)
@@ -427,42 +507,60 @@ class Controller:
         if ref is not None:
             T_f = ref.parameters.get("flight_time", ref.duration)
         T1 = ref.parameters.get("T1", self.cfg.t1_fraction * T_f) if ref is not None else np.inf
-        outs = [self.o_Hfw] + self.o_Lleg
         if "H_flywheel" in smp:
-            dH = d("H_flywheel", None)
+            outs, des = [self.o_Hfw], [d("H_flywheel", None)]
+        elif "phi_pitch" in smp and self.cfg.flight_pitch_output:
+            outs, des = [self.o_pitch], [d("phi_pitch", None)]
         else:
-            dH = Desired(np.array([self._momentum_transmission(smp)]), z, z)
-        des = [dH] + [d("L", f["L"][k]) for k in range(2)]
+            outs, des = [self.o_Hfw], [Desired(np.array([self._momentum_transmission(smp)]), z, z)]
+        outs = outs + self.o_Lleg
+        des = des + [d("L", f["L"][k]) for k in range(2)]
         if tau < T1:
             outs.append(self.o_j_pre)
             des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
         else:
             bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
+            # the foot placement is a world leg angle for the pelvis at its final pitch theta_T; with
+            # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
+            off = np.zeros(3)
+            if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
+                th_T = ref.sample(ref.duration)["phi_pitch"][0]
+                R = dyn.data.oMi[dyn.base_jid].rotation
+                w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
+                # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
+                # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
+                # against ~80 rad/s^2) and land with the feet far ahead
+                a_p = -float(self.u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
+                off = np.array([self.pitch - th_T, w_p, a_p])
             for k in range(2):
                 b = -(bplus if bplus is not None else f["beta"][k][0])
                 outs += [self.o_beta[k], self.o_toe[k]]
-                des += [d("beta_leg", [b]), d("toe_pitch", [0.0])]
+                bd = d("beta_leg", [b])
+                des += [Desired(bd.value - off[0], bd.d_value - off[1], bd.dd_value - off[2]),
+                        d("toe_pitch", [0.0])]
             outs.append(self.o_j_post)
             des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
         return outs, des
 
+    def _rest_inertia(self):
+        """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
+        import pinocchio as pin
+        dyn = self.dyn
+        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
+        return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
+
     def _momentum_transmission(self, smp):
         """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
         with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
-        import pinocchio as pin
-        dyn = self.dyn
-        H_pitch = float(dyn.Ag[4] @ dyn.v)
-        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
-        I_rest = float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
-        theta = self.pitch
+        H_pitch = float(self.dyn.Ag[4] @ self.dyn.v)
         th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
-        om_cl = om_des - self.cfg.k_theta * (theta - th_des)
-        return H_pitch - om_cl * I_rest
+        om_cl = om_des - self.cfg.k_theta * (self.pitch - th_des)
+        return H_pitch - om_cl * self._rest_inertia()
 
     def _update_feet(self):
         """Per-foot contact (LANDING, STANDING) from the kinematics and the shin springs: a foot whose
         lower end is ``foot_lift`` above the ground (lowest foot point when the domain began, then
-        following the loaded feet), or whose higher end is ``foot_tilt`` more, and whose leg's shin
+        following the loaded feet), and whose leg's shin
         spring carries less than ``foot_loaded_spring``, is off it; back on it below ``foot_land``.  A foot on the ground keeps its anchor (toe, heel positions, at ground height);
         an airborne foot keeps the last one as its swing target.  The QP's flat-foot contact for a foot
         that has unloaded and lifted is a model of something that is not there: torques computed
@@ -479,8 +577,10 @@ class Controller:
         iq = dyn.spring_q[[0, 2]]
         tau_shin = -dyn.spring_k[[0, 2]] * (dyn.q[iq] - dyn.q_spring[iq])
         for k, p in enumerate(P):
-            # the flat-foot contact needs both ends down: a foot rocked onto its toe or heel is not in it
-            h = max(min(p[2], p[5]), max(p[2], p[5]) - cfg.foot_tilt) - self._z_ground
+            # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
+            # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
+            # backflip landings: 1 fall in 6 start times with, 0 in 6 without)
+            h = min(p[2], p[5]) - self._z_ground
             if self.feet_contact[k]:
                 if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
                     self.feet_contact[k] = False

@@ -6,9 +6,14 @@ loop closures); it does not import joint stiffness, so the spring torques tau_s 
 shin and heel springs and the viscous joint damping -D v are read with MuJoCo's compiler from the same
 string and added to the bias here.
 
-Per tick (:meth:`Dynamics.update`): crba (M), nonLinearEffects (H), dccrba (A_g, dA_g, the joint
-Jacobians and their time variation), then frame Jacobians / drifts J v-dot terms of the points the
-constraints and outputs use.
+Per tick (:meth:`Dynamics.update`): computeMinverse (M^-1), nonLinearEffects (H), dccrba (A_g, dA_g, the
+world joint Jacobians J and their time variation dJ, the joint placements), updateFramePlacements, then
+the point table in a few batched numpy operations (not per-frame calls).  A point p on joint j, support
+columns S_j, has
+    J_p = S_j (J_v - [p]x J_w),   pdot = J_p v,   drift dJ_p v = a_O - [p]x alpha - pdot x omega,
+with omega = S_j J_w v and (a_O, alpha) = S_j dJ v the angular velocity of joint j and the time variation
+of its twist at the world origin (world-aligned frame Jacobian, classical acceleration at zero joint
+acceleration).
 
 Holonomic constraints J_{h,v} (eq. (2)):
   * loop closures (always): each MJCF ``connect`` is a 3D point coincidence.  A loop whose hinges are all
@@ -27,9 +32,15 @@ Holonomic constraints J_{h,v} (eq. (2)):
     integrations later), so the torque-only QP of §V-B cannot shape F_v.  The controller model
     therefore adds qddot_spring = 0 rows (the usual rigid-spring model of Cassie controllers); the
     measured spring deflections still enter the kinematics and tau_s.  False = the paper's model.
+Contact and loop rows are linear maps of the stacked point Jacobians, J_rows = T J_points, T holding the
+foot headings and the loops' S R1^T; all rows are built at once and selected per domain.  A loop row
+S R1^T (J_a - J_b) has the drift S R1^T (a_a - a_b - omega_1 x (v_a - v_b)), so the point table takes a
+loop point's drift relative to the loop's body 1, a_p - omega_1 x pdot_p (omega - omega_1 in the formula
+above, support S_j - S_1): T times the drifts is then the rows' drift.
 """
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -38,10 +49,6 @@ import numpy as np
 import pinocchio as pin
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-_CROW = np.array([0, 1, 2, 1, 2, 0, 1, 2, 1, 2])   # d, t, n of the contact basis
-_CPT = np.array([0, 0, 0, 1, 1, 2, 2, 2, 3, 3])    # toe_l, heel_l, toe_r, heel_r
-_gFJ = pin.getFrameJacobian
-_gFJTV = pin.getFrameJacobianTimeVariation
 
 MOTOR_NAMES = (
     "left_hip_roll", "left_hip_yaw", "left_hip_pitch", "left_knee", "left_foot",
@@ -50,10 +57,21 @@ MOTOR_NAMES = (
 )
 SPRING_NAMES = ("left_shin", "left_heel_spring", "right_shin", "right_heel_spring")
 SIDES = ("left", "right")
+N_CONTACT = 10   # 5 rows per foot
+
+# p @ _SKEW -> [p]x, row-major: [[0, -p2, p1], [p2, 0, -p0], [-p1, p0, 0]]
+_SKEW = np.zeros((3, 9))
+_SKEW[2, 1] = _SKEW[0, 5] = _SKEW[1, 6] = -1.0
+_SKEW[1, 2] = _SKEW[2, 3] = _SKEW[0, 7] = 1.0
 
 
 def _norm(name: str) -> str:
     return name.replace("-", "_")
+
+
+def skew(p):
+    """[p]x of each row of a k x 3 array, k x 3 x 3."""
+    return (p @ _SKEW).reshape(-1, 3, 3)
 
 
 @dataclass
@@ -65,7 +83,7 @@ class PointFrame:
 
 
 class Dynamics:
-    """Pinocchio model + per-tick terms: M, H (incl. springs/damping), A_g, constraint J, J v-dot."""
+    """Pinocchio model + per-tick terms: M^-1, H (incl. springs/damping), A_g, point table, constraint rows."""
 
     def __init__(self, mjcf: str, motor_names=MOTOR_NAMES, free_joint: str = "pelvis", rigid_springs: bool = True):
         self.mjcf = mjcf
@@ -90,12 +108,18 @@ class Dynamics:
 
         # joint-space passive terms and actuation map from MuJoCo's compiled model
         self._read_passive(mjcf)
+        # passive torques tau_p = -D v + Kq (q - q_spring), Kq: -k at (spring dof, spring coordinate)
+        self._neg_D = -self.D
+        self._Kq = np.zeros((self.nv, self.nq))
+        self._Kq[self.spring_v, self.spring_q] = -self.spring_k
         self.motor_names = tuple(motor_names)
         self.nu = len(self.motor_names)
         self.motor_v = np.array([self.v_index(n) for n in self.motor_names])
         self.motor_q = np.array([self.q_index(n) for n in self.motor_names])
         self.B = np.zeros((self.nv, self.nu))
         self.B[self.motor_v, np.arange(self.nu)] = 1.0
+        self.BH = np.zeros((self.nv, self.nu + 1))      # [B, -H] of the tick (H written by update)
+        self.BH[:, :self.nu] = self.B
 
         # points used by constraints and outputs
         self.points: dict[str, PointFrame] = {}
@@ -116,30 +140,14 @@ class Dynamics:
             self._add_point(f"{side}_foot", jf, pin.SE3.Identity())
         self.data = self.model.createData()
         self._il = np.tril_indices(self.nv, -1)
-        self._tab = None
-        self._pt_fids = [p.frame_id for p in self.points.values()]
-        self._P = np.zeros((len(self._pt_fids), 3))
-        self._pos_idx = [k for k, n in enumerate(self.points) if not n.startswith("loop")]
         self._pt_index = {n: k for k, n in enumerate(self.points)}
         self._loop_sel = self._loop_row_selection()
         self.n_loop = sum(s.shape[0] for s in self._loop_sel)
-        self.n_contact = 10  # 5 rows per foot
+        self.n_contact = N_CONTACT
         self._Jspring = np.zeros((len(self.spring_v), self.nv))
         self._Jspring[np.arange(len(self.spring_v)), self.spring_v] = 1.0
-        self._zspring = np.zeros(len(self.spring_v))
-        # index tables for the batched constraint rows
-        self._loop_a = np.array([self._pt_index[a.name] for a, _ in self._loops], dtype=int)
-        self._loop_b = np.array([self._pt_index[b.name] for _, b in self._loops], dtype=int)
-        self._loop_fid = [a.frame_id for a, _ in self._loops]
-        self._loop_S = np.zeros((len(self._loops), 3, 3))
-        rows = []
-        for k, S in enumerate(self._loop_sel):
-            self._loop_S[k, :S.shape[0]] = S
-            rows += [3 * k + i for i in range(S.shape[0])]
-        self._loop_rows = np.array(rows, dtype=int)
-        self._contact_idx = np.array([self._pt_index[self.foot_points[s][i].name] for s in SIDES for i in (0, 1)])
-        self._contact_rows = np.array([0, 1, 2, 4, 5, 6, 7, 8, 10, 11])   # toe d,t,n; heel t,n (per foot)
-        self._cons = {}
+        self._setup_point_table()
+        self._setup_constraint_rows()
         self.flywheel_v = self.v_index("flywheel") if "flywheel" in self._jid else None
         self.q = None
         self.v = None
@@ -153,6 +161,10 @@ class Dynamics:
 
     def has_joint(self, joint: str) -> bool:
         return _norm(joint) in self._jid
+
+    def point_index(self, name: str) -> int:
+        """Row of a point in the point table (:attr:`P`, :attr:`Jp`, ...)."""
+        return self._pt_index[name]
 
     def _add_point(self, name, joint_id, placement) -> PointFrame:
         fid = self.model.addFrame(pin.Frame(name, joint_id, placement, pin.FrameType.OP_FRAME))
@@ -238,26 +250,142 @@ class Dynamics:
             sel.append(keep)
         return sel
 
+    def _setup_point_table(self):
+        """Index tables of the batched point kinematics: the joints whose placements a tick reads (those
+        carrying points, and the base), each point's position in its joint, the supports."""
+        model = self.model
+        frames = [model.frames[p.frame_id] for p in self.points.values()]
+        pj = [f.parentJoint for f in frames]
+        joints = sorted(set(pj) | {self.base_jid})
+        self._tj = joints
+        self._tj_base = joints.index(self.base_jid)
+        n = len(frames)
+        jk = np.array([joints.index(j) for j in pj])
+        # positions: all joints' placements stacked (4 joints x 4) @ L (4 x n), entry (joint of k, row i, k)
+        self._pt_L = np.array([np.r_[f.placement.translation, 1.0] for f in frames]).T
+        self._pt_take = ((jk[:, None] * 4 + np.arange(3)[None]) * n + np.arange(n)[:, None]).ravel()
+
+        def support(j):
+            m = np.zeros(self.nv)
+            for a in model.supports[j]:
+                if a > 0:
+                    m[model.idx_vs[a]:model.idx_vs[a] + model.nvs[a]] = 1.0
+            return m
+        S = np.array([support(j) for j in pj]).T                  # nv x n
+        body1 = {p.name: a.joint_id for a, b in self._loops for p in (a, b)}
+        S1 = np.array([support(body1[k]) if k in body1 else np.zeros(self.nv) for k in self.points]).T
+        self._pt_support = S
+        self._pt_support_w = np.concatenate((S, S - S1), axis=1)   # omega, omega - omega_1 (loop points)
+        self._pt_mask = S.T[:, None, :].copy()                   # n x 1 x nv
+
+    def _setup_constraint_rows(self):
+        """T (contact rows, loop rows) x (3 * points): its constant entries, where the per-tick foot
+        headings (c, s) and loops' S R1^T go; the row sets of the one-foot domains."""
+        n_pts = len(self.points)
+        nr = N_CONTACT + self.n_loop
+        T = np.zeros((nr, 3 * n_pts))
+        ic = [self._pt_index[self.foot_points[s][i].name] for s in SIDES for i in (0, 1)]
+        self._contact_idx = np.array(ic)
+        cs_idx = []
+        for f in range(2):
+            toe, heel, r = 3 * ic[2 * f], 3 * ic[2 * f + 1], 5 * f
+            T[r + 2, toe + 2] = T[r + 4, heel + 2] = 1.0                        # n rows
+            # d = (c, s, 0), t = (-s, c, 0): entries [c, s, -s, c, -s, c]
+            cs_idx += [(r, toe), (r, toe + 1), (r + 1, toe), (r + 1, toe + 1), (r + 3, heel), (r + 3, heel + 1)]
+        self._cs_idx = np.array([i * T.shape[1] + j for i, j in cs_idx])
+        self._T_flat = T.reshape(-1)
+        # loops: S' R_j^T at point a and -S' R_j^T at point b, S' = S R_placement^T (S padded to 3 rows)
+        nl = len(self._loops)
+        Sp = np.zeros((2 * nl, 3, 3))
+        take, put, row = [], [], N_CONTACT
+        for k, ((a, b), S) in enumerate(zip(self._loops, self._loop_sel)):
+            Rp = self.model.frames[a.frame_id].placement.rotation
+            Sp[k, :S.shape[0]] = S @ Rp.T
+            Sp[nl + k, :S.shape[0]] = -S @ Rp.T
+            for i in range(S.shape[0]):
+                for blk, pt in ((k, a), (nl + k, b)):
+                    for c in range(3):
+                        take.append((blk * 3 + i) * 3 + c)
+                        put.append(row * T.shape[1] + 3 * self._pt_index[pt.name] + c)
+                row += 1
+        self._loop_S = Sp
+        self._loop_take, self._loop_put = np.array(take), np.array(put)
+        self._loop_R = np.array([self._tj.index(a.joint_id) for a, _ in self._loops] * 2)
+        self._T = T
+        ns = len(self.spring_v) if self.rigid_springs else 0
+        self._spring_rows = ns
+        self._spring_Jd = np.zeros((ns, self.nv + 1))
+        self._spring_Jd[:, :self.nv] = self._Jspring[:ns]
+        rest = np.arange(N_CONTACT, nr + ns)
+        self._row_sets = {(True, False): np.r_[np.arange(5), rest], (False, True): np.r_[np.arange(5, 10), rest]}
+
     # ------------------------------------------------------------------ per tick
     def update(self, q, v):
-        """All configuration/velocity-dependent terms of one tick (Minv by computeMinverse, H by
-        nonLinearEffects + passive torques, A_g and dA_g by dccrba, frame placements)."""
+        """All configuration/velocity-dependent terms of one tick: M^-1 (computeMinverse), H
+        (nonLinearEffects + passive torques), A_g, dA_g v, h_g (dccrba), frame placements, point table."""
         model, data = self.model, self.data
         self.q, self.v = q, v
         self.Minv = pin.computeMinverse(model, data, q)     # full symmetric M^-1 (pin >= 3)
         h = pin.nonLinearEffects(model, data, q, v)
-        tau_p = -self.D * v
-        tau_p[self.spring_v] -= self.spring_k * (q[self.spring_q] - self.q_spring[self.spring_q])
+        tau_p = self._neg_D * v + self._Kq @ (q - self.q_spring)
         self.tau_passive = tau_p                 # J_s^T tau_s (springs) and joint damping
-        self.H = h - tau_p                       # H of eq. (1) with the passive torques moved in
+        np.subtract(tau_p, h, out=self.BH[:, -1])   # -H, H of eq. (1) with the passive torques moved in
         pin.dccrba(model, data, q, v)            # returns dA_g; sets data.Ag, data.J, data.dJ, data.oMi
         self.Ag = data.Ag
         self.dAg_v = data.dAg @ v
-        self.hg_lin = data.Ag[:3] @ v             # m * COM velocity
+        self.hg = self.Ag @ v                    # centroidal momentum (linear = m * COM velocity)
+        self.hg_lin = self.hg[:3]
         pin.updateFramePlacements(model, data)
-        self._tab = None
-        self._cons = {}
+        self._point_table(v)
+        self._rows = None
+        self._lists = None
         return self
+
+    def _point_table(self, v):
+        """Positions P, world-aligned Jacobians Jp (linear part), drifts and velocities pdot of every
+        point (module doc; loop points' drifts relative to the loop's body 1); the joint placements."""
+        data = self.data
+        oMi = data.oMi.tolist()
+        Hj = np.array([oMi[j].homogeneous for j in self._tj])                      # joints x 4 x 4
+        self._Hj = Hj
+        self.R_base = Hj[self._tj_base, :3, :3]
+        P = np.take(Hj.reshape(-1, 4) @ self._pt_L, self._pt_take).reshape(-1, 3)
+        Sk = skew(P)
+        n, nv = len(P), self.nv
+        self._pt_rows = rows = np.empty((3 * n, nv + 1))     # [stacked J_p, stacked drifts]
+        Jp, drift = rows[:, :nv].reshape(n, 3, nv), rows[:, nv].reshape(n, 3)
+        J = data.J
+        np.matmul(Sk, J[3:], out=Jp)
+        np.subtract(J[:3], Jp, out=Jp)
+        Jp *= self._pt_mask
+        pdot = Jp @ v
+        acc = ((data.dJ * v) @ self._pt_support).T                                # (a_O, alpha) per point
+        w = ((J[3:] * v) @ self._pt_support_w).T                                  # omega, omega - omega_1
+        np.subtract(acc[:, :3], (Sk @ acc[:, 3:, None])[:, :, 0], out=drift)
+        drift -= (skew(pdot) @ w[n:, :, None])[:, :, 0]
+        self.P, self.Jp, self.drift, self.pdot, self.omega = P, Jp, drift, pdot, w[:n]
+
+    def point(self, name):
+        """(p, J_lin (3 x nv), classical drift Jdot v (3,), pdot, omega) of a point, world-aligned
+        (a loop point's drift is relative to the loop's body 1, see the module doc)."""
+        k = self._pt_index[name]
+        return self.P[k], self.Jp[k], self.drift[k], self.pdot[k], self.omega[k]
+
+    def point_lists(self):
+        """(P, pdot, drift) of the tick as nested Python lists (scalar arithmetic for the outputs)."""
+        if self._lists is None:
+            self._lists = (self.P.tolist(), self.pdot.tolist(), self.drift.tolist())
+        return self._lists
+
+    @property
+    def H(self):
+        """H of eq. (1): Coriolis + gravity - passive torques."""
+        return -self.BH[:, -1]
+
+    @property
+    def com(self):
+        """COM position (dccrba's data.com[0])."""
+        return self.data.com[0]
 
     @property
     def M(self):
@@ -266,75 +394,40 @@ class Dynamics:
         M[self._il] = M.T[self._il]
         return M
 
-    def _point_table(self):
-        """World-aligned Jacobians (getFrameJacobian) and classical drifts (getFrameJacobianTimeVariation v,
-        from dccrba's data.dJ) of every point frame; positions of the non-loop points."""
-        model, data, v = self.model, self.data, self.v
-        fids = self._pt_fids
-        Js = np.array([_gFJ(model, data, f, LWA) for f in fids])         # (k, 6, nv)
-        dJv = np.array([_gFJTV(model, data, f, LWA) for f in fids]) @ v  # (k, 6): [classical acc, alpha]
-        tw = Js @ v                                                       # (k, 6): [pdot, omega]
-        P = self._P
-        oMf = data.oMf
-        for k in self._pos_idx:
-            P[k] = oMf[fids[k]].translation
-        self._tab = (P, Js[:, :3], dJv[:, :3], tw[:, :3], tw[:, 3:])
-
-    def point(self, name):
-        """(p, J_lin (3 x nv), classical drift Jdot v (3,), pdot, omega) of a point, world-aligned."""
-        if self._tab is None:
-            self._point_table()
-        k = self._pt_index[name]
-        P, Jp, drift, pdot, w = self._tab
-        return P[k], Jp[k], drift[k], pdot[k], w[k]
-
     def com_terms(self):
         """COM position, Jacobian (A_g[:3]/m) and drift (dA_g v)[:3]/m."""
-        return self.data.com[0], self.Ag[:3] / self.mass, self.dAg_v[:3] / self.mass
-
-    def loop_constraints(self):
-        """Stacked loop-closure Jacobian and drift: c = S R1^T (p1 - p2) (rows S kept in the body-1 frame),
-        c_ddot = S R1^T (a1 - a2 - w1 x (v1 - v2)) + terms in (p1 - p2) = 0."""
-        if self._tab is None:
-            self._point_table()
-        P, Jp, drift, pdot, w = self._tab
-        ia, ib = self._loop_a, self._loop_b
-        oMf = self.data.oMf
-        R1 = np.array([oMf[f].rotation for f in self._loop_fid])                   # (4,3,3)
-        SR = self._loop_S @ R1.transpose(0, 2, 1)                                  # (4,3,3), padded rows
-        wa = w[ia]
-        dd = drift[ia] - drift[ib] - _cross(wa, pdot[ia] - pdot[ib])
-        Jl = (SR @ (Jp[ia] - Jp[ib])).reshape(-1, self.nv)[self._loop_rows]
-        dl = (SR @ dd[:, :, None]).reshape(-1)[self._loop_rows]
-        return Jl, dl
+        return self.com, self.Ag[:3] / self.mass, self.dAg_v[:3] / self.mass
 
     def foot_frame(self, side):
         """Rows d (horizontal toe-heel direction), t = z x d, n = z of one foot, world frame."""
-        toe = self.data.oMf[self.foot_points[side][0].frame_id].translation
-        heel = self.data.oMf[self.foot_points[side][1].frame_id].translation
+        toe = self.P[self._pt_index[self.foot_points[side][0].name]]
+        heel = self.P[self._pt_index[self.foot_points[side][1].name]]
         dx, dy = toe[0] - heel[0], toe[1] - heel[1]
         nrm = max((dx * dx + dy * dy) ** 0.5, 1e-9)
         dx, dy = dx / nrm, dy / nrm
         return np.array([[dx, dy, 0.0], [-dy, dx, 0.0], [0.0, 0.0, 1.0]])
 
-    def contact_constraints(self):
-        """Flat-foot contact rows: per foot toe (d, t, n) and heel (t, n) -> 5 rows; forces in that basis."""
-        if self._tab is None:
-            self._point_table()
-        P, Jp, drift, _, _ = self._tab
-        ic = self._contact_idx                       # toe_l, heel_l, toe_r, heel_r
-        dxy = P[ic[0::2], :2] - P[ic[1::2], :2]      # (2, 2) toe - heel per foot
-        dxy /= np.sqrt((dxy * dxy).sum(1))[:, None]
-        cs = dxy[[0, 0, 1, 1]]                       # (4, 2): (cos, sin) of each point's foot heading
-        c, s_ = cs[:, :1], cs[:, 1:]
-        Jx, Jy = Jp[ic, 0], Jp[ic, 1]                # (4, nv)
-        a = drift[ic]                                # (4, 3)
-        Jall = np.stack([c * Jx + s_ * Jy, c * Jy - s_ * Jx, Jp[ic, 2]])             # (3: d t n, 4, nv)
-        dall = np.stack([c[:, 0] * a[:, 0] + s_[:, 0] * a[:, 1], c[:, 0] * a[:, 1] - s_[:, 0] * a[:, 0], a[:, 2]])
-        # rows: toe_l d,t,n  heel_l t,n  toe_r d,t,n  heel_r t,n
-        Jc = Jall[_CROW, _CPT]
-        dc = dall[_CROW, _CPT]
-        return Jc, dc
+    def _constraint_rows(self):
+        """[J, Jdot v] of all constraint rows of the tick: contact (both feet) | loops | springs."""
+        T = self._T
+        cs = []
+        Pxy = self.P[self._contact_idx, :2].tolist()
+        for f in range(2):
+            (tx, ty), (hx, hy) = Pxy[2 * f], Pxy[2 * f + 1]
+            dx, dy = tx - hx, ty - hy
+            nrm = math.sqrt(dx * dx + dy * dy)
+            c, s = dx / nrm, dy / nrm
+            cs += [c, s, -s, c, -s, c]
+        Tf = self._T_flat
+        Tf[self._cs_idx] = cs
+        R = self._Hj[self._loop_R, :3, :3]
+        Tf[self._loop_put] = np.take(self._loop_S @ R.transpose(0, 2, 1), self._loop_take)
+        nr = T.shape[0]
+        Jd = np.empty((nr + self._spring_rows, self.nv + 1))
+        np.matmul(T, self._pt_rows, out=Jd[:nr])
+        Jd[nr:] = self._spring_Jd
+        self._rows = Jd
+        return Jd
 
     def constraints(self, ground: bool, feet=(True, True)):
         """J_{h,v} and Jdot_{h,v} v of a domain.
@@ -344,34 +437,10 @@ class Dynamics:
         acceleration 0; its force is the spring torque the motors must hold).  See the module doc for
         why the springs are held rigid in the QP model.
         """
-        feet = tuple(bool(f) for f in feet)
-        key = (bool(ground), feet if ground else None)
-        c = self._cons.get(key)
-        if c is not None:
-            return c
-        Jl, dl = self.loop_constraints()
-        Js, ds = [Jl], [dl]
-        if ground and any(feet):
-            Jc, dc = self.contact_constraints()
-            if not all(feet):
-                rows = np.r_[0:5] if feet[0] else np.r_[5:10]
-                Jc, dc = Jc[rows], dc[rows]
-            Js.insert(0, Jc)
-            ds.insert(0, dc)
-        if self.rigid_springs:
-            Js.append(self._Jspring)
-            ds.append(self._zspring)
-        c = self._cons[key] = (np.concatenate(Js), np.concatenate(ds))
-        return c
-
-
-def cross3(a, b):
-    """Cross product of two 3-vectors (np.cross is ~20x slower for this size)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def _cross(a, b):
-    """Row-wise cross product of k x 3 arrays."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+        Jd = self._rows if self._rows is not None else self._constraint_rows()
+        left, right = bool(feet[0]), bool(feet[1])
+        if not ground or not (left or right):
+            Jd = Jd[N_CONTACT:]
+        elif not (left and right):
+            Jd = Jd[self._row_sets[(left, right)]]
+        return Jd[:, :-1], Jd[:, -1]

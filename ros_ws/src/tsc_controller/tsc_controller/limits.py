@@ -54,8 +54,16 @@ class TorqueLimits:
         self.tau_max = np.asarray(lim.torque_limit, float)
         w0 = np.asarray(lim.no_load_speed, float)
         self._inv_w0 = np.where(np.isinf(w0), 0.0, 1.0 / np.where(np.isinf(w0), 1.0, w0))
+        self._sign_tau = np.array([-self.tau_max, self.tau_max])
+        self._sign = np.array([[-1.0], [1.0]])
 
     def bounds(self, motor_velocities):
-        w = np.asarray(motor_velocities, float)
-        avail = self.tau_max * np.clip(1.0 - np.abs(w) * self._inv_w0, 0.0, 1.0)
-        return np.where(w < 0, -avail, -self.tau_max), np.where(w > 0, avail, self.tau_max)
+        """(u_lb, u_ub): the bound a motor pushes against (the sign of its velocity) is
+        tau_max clip(1 - |w|/w0, 0, 1), the other one tau_max."""
+        f = self._sign * np.asarray(motor_velocities, float)        # (-w, w)
+        np.fmax(f, 0.0, out=f)
+        f *= self._inv_w0
+        np.subtract(1.0, f, out=f)
+        np.maximum(f, 0.0, out=f)
+        f *= self._sign_tau
+        return f[0], f[1]

@@ -9,6 +9,9 @@ the drift ``Jdot v`` and, for relative degree 2, its velocity ``J v``:
 
 The desired values come from the reference (``value, d_value, dd_value``); the TSC forms
 Y = y - y_des and the commanded derivative of eq. (Ydes): Ydot1_des = -K1p Y1, Ydd2_des = -K2p Y2 - K2d Ydot2.
+
+Point-based outputs do their 3-vector arithmetic on Python floats (the tick's point table as lists) and
+form their Jacobian as one combination of point Jacobian rows.
 """
 from __future__ import annotations
 
@@ -16,7 +19,7 @@ import math
 
 import numpy as np
 
-from .dynamics import SIDES, Dynamics, cross3
+from .dynamics import SIDES, Dynamics
 
 
 class Output:
@@ -35,13 +38,28 @@ class Output:
         raise NotImplementedError
 
 
+def _point_rows(dyn, names):
+    """Indices of the x, y, z rows of points in the stacked point Jacobians ``dyn.Jp.reshape(-1, nv)``."""
+    return np.array([3 * dyn.point_index(n) + i for n in names for i in range(3)])
+
+
+def _rows_jacobian(dyn, rows, coef):
+    """sum_i coef_i * (row rows_i of the stacked point Jacobians), as a 1 x nv array."""
+    return np.array([coef]) @ dyn.Jp.reshape(-1, dyn.nv)[rows]
+
+
+def _scalars(y, drift, ydot):
+    """(y, drift, ydot) of a 1-dim output as (1,) arrays (views of one array)."""
+    a = np.array([y, drift, ydot])
+    return a[0:1], a[1:2], a[2:3]
+
+
 class CentroidalPitchMomentum(Output):
     """H_pitch(q, v): centroidal angular momentum about the COM, world y (eq. Y_1^{J/L}); degree 1."""
     degree = 1
 
     def evaluate(self, dyn):
-        J = dyn.Ag[4:5]
-        return J @ dyn.v, J, dyn.dAg_v[4:5], None
+        return dyn.hg[4:5], dyn.Ag[4:5], dyn.dAg_v[4:5], None
 
 
 class FlywheelMomentum(Output):
@@ -55,47 +73,31 @@ class FlywheelMomentum(Output):
     def __init__(self, name="H_flywheel", **kw):
         super().__init__(name, **kw)
 
-    def evaluate(self, dyn):
+    def _setup(self, dyn):
         m = dyn.model
         jid = dyn._jid["flywheel"]
+        jm = m.joints[jid]
+        # hinge axis of the flywheel in its parent (pelvis) frame
+        ax = {"JointModelRX": [1, 0, 0], "JointModelRY": [0, 1, 0], "JointModelRZ": [0, 0, 1]}.get(jm.shortname())
+        if ax is None:
+            ax = list(jm.axis) if hasattr(jm, "axis") else [0, 1, 0]
+        ax_local = np.array(ax, float)
+        self._a = m.jointPlacements[jid].rotation @ ax_local
+        self._I = float(ax_local @ m.inertias[jid].inertia @ ax_local)
+        self._iv = m.idx_vs[jid]
+        self._base_v = m.idx_vs[dyn.base_jid]
+
+    def evaluate(self, dyn):
         if not hasattr(self, "_I"):
-            jm = m.joints[jid]
-            # hinge axis of the flywheel in its parent (pelvis) frame
-            S = jm.shortname()
-            ax = {"JointModelRX": [1, 0, 0], "JointModelRY": [0, 1, 0], "JointModelRZ": [0, 0, 1]}.get(S)
-            if ax is None:
-                ax = list(jm.axis) if hasattr(jm, "axis") else [0, 1, 0]
-            ax_local = np.array(ax, float)
-            self._a = m.jointPlacements[jid].rotation @ ax_local
-            self._I = float(ax_local @ m.inertias[jid].inertia @ ax_local)
-            self._iv = m.idx_vs[jid]
-            self._base_v = m.idx_vs[dyn.base_jid]
-        R = dyn.data.oMi[dyn.base_jid].rotation
-        b = self._base_v
-        ey_R = R[1]                          # e_y^T R
+            self._setup(dyn)
+        b, iv, I = self._base_v, self._iv, self._I
+        ey_R = dyn.R_base[1]                 # e_y^T R
         J = np.zeros((1, dyn.nv))
-        J[0, b + 3:b + 6] = self._I * ey_R
-        J[0, self._iv] = self._I * (ey_R @ self._a)
-        wl = dyn.v[b + 3:b + 6]
-        drift = self._I * (ey_R @ cross3(wl, self._a * dyn.v[self._iv]))
+        J[0, b + 3:b + 6] = I * ey_R
+        J[0, iv] = I * (ey_R @ self._a)
+        (w0, w1, w2), (a0, a1, a2), e = dyn.v[b + 3:b + 6].tolist(), (self._a * dyn.v[iv]).tolist(), ey_R.tolist()
+        drift = I * (e[0] * (w1 * a2 - w2 * a1) + e[1] * (w2 * a0 - w0 * a2) + e[2] * (w0 * a1 - w1 * a0))
         return J @ dyn.v, J, np.array([drift]), None
-
-
-def leg_vector(dyn, side):
-    """hip (hip-pitch joint origin) -> foot (foot joint origin) vector, its J, drift, velocity."""
-    ph, Jh, dh, vh, _ = dyn.point(f"{side}_hip")
-    pf, Jf, df, vf, _ = dyn.point(f"{side}_foot")
-    return pf - ph, Jf - Jh, df - dh, vf - vh
-
-
-def _leg_length(dyn, side):
-    r, Jr, dr, vr = leg_vector(dyn, side)
-    L = math.sqrt(r @ r)
-    n = r / L
-    J = n @ Jr
-    Ldot = n @ vr
-    drift = n @ dr + (vr @ vr - Ldot * Ldot) / L
-    return L, J, drift, Ldot
 
 
 class LegLength(Output):
@@ -108,26 +110,29 @@ class LegLength(Output):
 
     def evaluate(self, dyn):
         if self._idx is None:
-            ix = dyn._pt_index
-            self._idx = ([ix[f"{s}_foot"] for s in self.sides], [ix[f"{s}_hip"] for s in self.sides])
-        if dyn._tab is None:
-            dyn._point_table()
-        P, Jp, drift, pdot, _ = dyn._tab
+            pi = dyn.point_index
+            self._idx = [(pi(f"{s}_foot"), pi(f"{s}_hip")) for s in self.sides]
+            self._rows = _point_rows(dyn, [f"{s}_{p}" for s in self.sides for p in ("foot", "hip")])
+        P, V, A = dyn.point_lists()
         k = 1.0 / len(self.sides)
         L = Ld = dd = 0.0
-        J = 0.0
-        for f, h in zip(*self._idx):
-            r = P[f] - P[h]                              # hip -> foot
-            Li = math.sqrt(r @ r)
-            n = r / Li
-            vr = pdot[f] - pdot[h]
-            Ldi = n @ vr
-            J = J + n @ (Jp[f] - Jp[h])
+        coef = []
+        for f, h in self._idx:
+            (f0, f1, f2), (h0, h1, h2) = P[f], P[h]
+            r0, r1, r2 = f0 - h0, f1 - h1, f2 - h2                    # hip -> foot
+            Li = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+            n0, n1, n2 = r0 / Li, r1 / Li, r2 / Li
+            (f0, f1, f2), (h0, h1, h2) = V[f], V[h]
+            v0, v1, v2 = f0 - h0, f1 - h1, f2 - h2
+            Ldi = n0 * v0 + n1 * v1 + n2 * v2
+            (f0, f1, f2), (h0, h1, h2) = A[f], A[h]
             # d^2|r|/dt^2 = n . a_r + (|v_r|^2 - Ldot^2) / L
-            dd += n @ (drift[f] - drift[h]) + (vr @ vr - Ldi * Ldi) / Li
+            dd += n0 * (f0 - h0) + n1 * (f1 - h1) + n2 * (f2 - h2) + (v0 * v0 + v1 * v1 + v2 * v2 - Ldi * Ldi) / Li
             L += Li
             Ld += Ldi
-        return np.array([k * L]), (k * J)[None], np.array([k * dd]), np.array([k * Ld])
+            coef += [k * n0, k * n1, k * n2, -k * n0, -k * n1, -k * n2]
+        y, drift, ydot = _scalars(k * L, k * dd, k * Ld)
+        return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
 
 class LegAngle(Output):
@@ -136,27 +141,31 @@ class LegAngle(Output):
     def __init__(self, name="beta_leg", sides=SIDES, **kw):
         super().__init__(name, **kw)
         self.sides = tuple(sides)
+        self._idx = None
 
     def evaluate(self, dyn):
-        acc = [0.0, 0.0, 0.0, 0.0]
-        for s in self.sides:
-            r, Jr, dr, vr = leg_vector(dyn, s)
-            x, z = r[0], -r[2]
+        if self._idx is None:
+            pi = dyn.point_index
+            self._idx = [(pi(f"{s}_foot"), pi(f"{s}_hip")) for s in self.sides]
+            self._rows = np.array([3 * k + i for f, h in self._idx for k in (f, h) for i in (0, 2)])
+        P, V, A = dyn.point_lists()
+        k = 1.0 / len(self.sides)
+        beta = bdot = drift = 0.0
+        coef = []
+        for f, h in self._idx:
+            x, z = P[f][0] - P[h][0], -(P[f][2] - P[h][2])
             rho2 = x * x + z * z
             gx, gz = z / rho2, -x / rho2             # d beta / d(x, z)
-            J = gx * Jr[0] - gz * Jr[2]
-            xd, zd = vr[0], -vr[2]
-            bd = gx * xd + gz * zd
+            xd, zd = V[f][0] - V[h][0], -(V[f][2] - V[h][2])
+            bdot += gx * xd + gz * zd
             # second-order term: d/dt(gx) xd + d/dt(gz) zd
             dgx = (zd * rho2 - z * 2 * (x * xd + z * zd)) / rho2 ** 2
             dgz = (-xd * rho2 + x * 2 * (x * xd + z * zd)) / rho2 ** 2
-            drift = gx * dr[0] - gz * dr[2] + dgx * xd + dgz * zd
-            acc[0] += math.atan2(x, z)
-            acc[1] = acc[1] + J
-            acc[2] += drift
-            acc[3] += bd
-        k = 1.0 / len(self.sides)
-        return np.array([k * acc[0]]), (k * acc[1])[None], np.array([k * acc[2]]), np.array([k * acc[3]])
+            drift += gx * (A[f][0] - A[h][0]) - gz * (A[f][2] - A[h][2]) + dgx * xd + dgz * zd
+            beta += math.atan2(x, z)
+            coef += [k * gx, -k * gz, -k * gx, k * gz]     # J = gx J_rx - gz J_rz
+        y, drift, ydot = _scalars(k * beta, k * drift, k * bdot)
+        return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
 
 class ComPosition(Output):
@@ -166,16 +175,17 @@ class ComPosition(Output):
         super().__init__(name, **kw)
         self.axes = list(axes)
         self.dim = len(self.axes)
+        a0 = self.axes[0]
+        contiguous = self.axes == list(range(a0, a0 + self.dim))
+        self._sel = slice(a0, a0 + self.dim) if contiguous else np.array(self.axes)
 
     def evaluate(self, dyn):
-        a0, a1 = self.axes[0], self.axes[-1] + 1
-        if a1 - a0 != self.dim:
-            c, J, d = dyn.com_terms()
-            J = J[self.axes]
-            return c[self.axes].copy(), J, d[self.axes], J @ dyn.v
+        s = self._sel
         im = 1.0 / dyn.mass
-        J = dyn.Ag[a0:a1] * im
-        return dyn.data.com[0][a0:a1].copy(), J, dyn.dAg_v[a0:a1] * im, dyn.hg_lin[a0:a1] * im
+        y, drift, ydot = np.array((dyn.com[s], dyn.dAg_v[s], dyn.hg_lin[s]))
+        drift *= im
+        ydot *= im
+        return y, dyn.Ag[s] * im, drift, ydot
 
 
 class PelvisOrientation(Output):
@@ -189,12 +199,15 @@ class PelvisOrientation(Output):
         super().__init__(name, **kw)
         self.axes = [self.ORDER.index(a) for a in axes]
         self.dim = len(self.axes)
+        self._b = None
 
     def evaluate(self, dyn):
-        b = dyn.model.idx_vs[dyn.base_jid]
-        R = dyn.data.oMi[dyn.base_jid].rotation
-        w0, w1, w2 = (R @ dyn.v[b + 3:b + 6]).tolist()
-        (r00, _, _), (r10, _, _), (r20, r21, r22) = R.tolist()
+        if self._b is None:
+            self._b = dyn.model.idx_vs[dyn.base_jid]
+        b, R = self._b, dyn.R_base
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+        x, y, z = dyn.v[b + 3:b + 6].tolist()
+        w0, w1, w2 = r00 * x + r01 * y + r02 * z, r10 * x + r11 * y + r12 * z, r20 * x + r21 * y + r22 * z
         psi = math.atan2(r10, r00)
         th = math.asin(max(-1.0, min(1.0, -r20)))
         phi = math.atan2(r21, r22)
@@ -210,10 +223,8 @@ class PelvisOrientation(Output):
                       [-sp, cp, 0.0],                      # pitch rate
                       [st * cp / ct, st * sp / ct, 1.0]])  # yaw rate
         J = np.zeros((3, dyn.nv))
-        J[:, b + 3:b + 6] = E @ R
-        ang = np.array([phi, th, psi])
-        vel = np.array([phid, thd, psid])
-        drift = np.array([d_phi, d_th, d_psi])
+        np.matmul(E, R, out=J[:, b + 3:b + 6])
+        ang, vel, drift = np.array([[phi, th, psi], [phid, thd, psid], [d_phi, d_th, d_psi]])
         if self.dim == 3:
             return ang, J, drift, vel
         a = self.axes
@@ -235,7 +246,7 @@ class JointPositions(Output):
         iq, iv = self._idx
         J = np.zeros((self.dim, dyn.nv))
         J[np.arange(self.dim), iv] = 1.0
-        return dyn.q[iq].copy(), J, np.zeros(self.dim), dyn.v[iv].copy()
+        return dyn.q[iq], J, np.zeros(self.dim), dyn.v[iv]
 
 
 class FootPitch(Output):
@@ -244,20 +255,26 @@ class FootPitch(Output):
     def __init__(self, name="toe_pitch", sides=SIDES, **kw):
         super().__init__(name, **kw)
         self.sides = tuple(sides)
+        self._idx = None
 
     def evaluate(self, dyn):
-        y = J = dr = vel = 0.0
-        for s in self.sides:
-            pt, Jt, dt_, vt, _ = dyn.point(f"{s}_toe")
-            ph, Jh, dh, vh, _ = dyn.point(f"{s}_heel")
-            ell = float(np.linalg.norm(dyn.model.frames[dyn.points[f"{s}_toe"].frame_id].placement.translation
-                                       - dyn.model.frames[dyn.points[f"{s}_heel"].frame_id].placement.translation))
-            y += (pt[2] - ph[2]) / ell
-            J = J + (Jt[2] - Jh[2]) / ell
-            dr += (dt_[2] - dh[2]) / ell
-            vel += (vt[2] - vh[2]) / ell
+        if self._idx is None:
+            pi, fr, pts = dyn.point_index, dyn.model.frames, dyn.points
+            ell = [float(np.linalg.norm(fr[pts[f"{s}_toe"].frame_id].placement.translation
+                                        - fr[pts[f"{s}_heel"].frame_id].placement.translation)) for s in self.sides]
+            self._idx = [(pi(f"{s}_toe"), pi(f"{s}_heel"), e) for s, e in zip(self.sides, ell)]
+            self._rows = np.array([3 * k + 2 for t, h, _ in self._idx for k in (t, h)])
+        P, V, A = dyn.point_lists()
         k = 1.0 / len(self.sides)
-        return np.array([k * y]), (k * J)[None], np.array([k * dr]), np.array([k * vel])
+        y = dr = vel = 0.0
+        coef = []
+        for t, h, ell in self._idx:
+            y += (P[t][2] - P[h][2]) / ell
+            dr += (A[t][2] - A[h][2]) / ell
+            vel += (V[t][2] - V[h][2]) / ell
+            coef += [k / ell, -k / ell]
+        y, drift, ydot = _scalars(k * y, k * dr, k * vel)
+        return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
 
 class FootPoints(Output):
@@ -271,13 +288,10 @@ class FootPoints(Output):
     def __init__(self, name="foot", side="left", **kw):
         super().__init__(name, **kw)
         self.side = side
+        self._idx = None
 
     def evaluate(self, dyn):
-        ys, Js, ds, vs = [], [], [], []
-        for k in ("toe", "heel"):
-            p, J, d, v, _ = dyn.point(f"{self.side}_{k}")
-            ys.append(p)
-            Js.append(J)
-            ds.append(d)
-            vs.append(v)
-        return np.concatenate(ys), np.vstack(Js), np.concatenate(ds), np.concatenate(vs)
+        if self._idx is None:
+            self._idx = np.array([dyn.point_index(f"{self.side}_{k}") for k in ("toe", "heel")])
+        i = self._idx
+        return dyn.P[i].ravel(), dyn.Jp[i].reshape(6, dyn.nv), dyn.drift[i].ravel(), dyn.pdot[i].ravel()

@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs
+from scipy.linalg.lapack import dposv
 
 from .limits import grf_constraints
 
@@ -34,36 +34,57 @@ class QPResult:
     u: np.ndarray
     status: str
     forces: np.ndarray          # predicted constraint forces (contact rows first when on the ground)
-    qdd: np.ndarray
     solve_time: float
     iterations: int = 0
     y: dict = field(default_factory=dict)   # output errors (name -> Y)
+    dynamics: ConstrainedDynamics = None
+
+    @property
+    def qdd(self):
+        """Predicted joint accelerations Abar u + bbar."""
+        return self.dynamics.Abar @ self.u + self.dynamics.bbar
 
 
 class ConstrainedDynamics:
-    """The affine maps F = A u + b and qddot = Abar u + bbar of one tick (paper eq. (utoF) ff.)."""
+    """The affine maps F = A u + b and qddot = Abar u + bbar of one tick (paper eq. (utoF) ff.).
+
+    One pass over R = [J^T, B, -H]: Y = (J M^-1 J^T)^-1 (J M^-1 [B, -H] + [0, Jdot v]) = -[A, b] and
+    X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar]."""
 
     def __init__(self, dyn, ground: bool, feet=(True, True)):
         self.ground = ground
         J, dJv = dyn.constraints(ground, feet)
-        Minv = dyn.Minv
-        nu = dyn.nu
-        MiJ = Minv @ J.T                              # M^-1 J^T
-        MiB = Minv[:, dyn.motor_v]                    # M^-1 B
-        MiH = Minv @ dyn.H
-        c, info = dpotrf(J @ MiJ, lower=0, clean=0)   # J M^-1 J^T (full row rank by construction)
+        nc = J.shape[0]
+        MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
+        JMiR = J @ MiR
+        JMiR[:, -1] += dJv
+        _, self.Y, info = dposv(JMiR[:, :nc], JMiR[:, nc:], lower=0)   # J M^-1 J^T: full row rank by construction
         if info != 0:
-            raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dpotrf info {info})")
-        JMi = MiJ.T
-        r = np.empty((J.shape[0], nu + 1))
-        r[:, :nu] = JMi[:, dyn.motor_v]               # J M^-1 B
-        r[:, nu] = JMi @ dyn.H - dJv                  # J M^-1 H - Jdot v
-        Y, info = dpotrs(c, r, lower=0)
-        self.A = -Y[:, :nu]
-        self.b = Y[:, nu]
-        self.Abar = MiB + MiJ @ self.A                # M^-1 (B + J^T A_v)
-        self.bbar = MiJ @ self.b - MiH                # -M^-1 (H - J^T b_v)
-        self.J, self.dJv, self.nc = J, dJv, J.shape[0]
+            raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dposv info {info})")
+        self.X = MiR[:, nc:] - MiR[:, :nc] @ self.Y
+        self.J, self.dJv, self.nc, self.nu = J, dJv, nc, dyn.nu
+
+    @property
+    def A(self):
+        return -self.Y[:, :self.nu]
+
+    @property
+    def b(self):
+        return -self.Y[:, self.nu]
+
+    @property
+    def Abar(self):
+        return self.X[:, :self.nu]
+
+    @property
+    def bbar(self):
+        return self.X[:, self.nu]
+
+    def forces(self, u):
+        """F = A u + b."""
+        F = self.Y[:, :self.nu] @ u
+        F += self.Y[:, self.nu]
+        return np.negative(F, out=F)
 
 
 class _ProxQP:
@@ -109,22 +130,63 @@ class _DAQP:
         import daqp
         self.daqp = daqp
         self.n, self.n_in = n, n_in
+        self._bu = np.empty(n + n_in)
+        self._bl = np.empty(n + n_in)
+        self._sense = np.zeros(n + n_in, dtype=np.int32)
+        self._A0 = np.zeros((0, n))
 
     def solve(self, H, g, C, lo, up, lb, ub):
-        n = self.n
+        n, bu, bl = self.n, self._bu, self._bl
         if C is None or C.shape[0] == 0:
-            A = np.zeros((0, n))
+            A = self._A0
             bu, bl = ub, lb
         else:
             A = np.ascontiguousarray(C)
-            bu = np.concatenate([ub, up])
-            bl = np.concatenate([lb, lo])
-        sense = np.zeros(len(bu), dtype=np.int32)
-        x, _, flag, info = self.daqp.solve(np.ascontiguousarray(H), g, A, bu, bl, sense)
+            bu[:n] = ub
+            bu[n:] = up
+            bl[:n] = lb
+            bl[n:] = lo
+        x, _, flag, info = self.daqp.solve(np.ascontiguousarray(H), g, A, bu, bl, self._sense[:len(bu)])
         return np.asarray(x), ("solved" if flag == 1 else f"daqp_exit_{flag}"), int(info.get("iterations", 0))
 
 
 SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP}
+
+
+class _Task:
+    """Per output list (cached): stacked weights and gains, row slices.  Weights and gains are read when
+    the list is first seen; degree-1 rows get kd = 0 (their command has no velocity term)."""
+
+    def __init__(self, outputs, evaluated):
+        self.outputs = tuple(outputs)          # keeps the ids of the cache key alive
+        self.dims = [ev[1].shape[0] for ev in evaluated]
+        self.m = sum(self.dims)
+        self.w, self.kp, self.kd = (
+            np.concatenate([np.broadcast_to(np.asarray(g(o), float), (d,)) for o, d in zip(outputs, self.dims)])
+            for g in (lambda o: o.weight, lambda o: o.kp, lambda o: o.kd if o.degree == 2 else 0.0))
+        ends = np.cumsum(self.dims).tolist()
+        self.slices = [(o.name, slice(e - d, e)) for o, d, e in zip(outputs, self.dims, ends)]
+        self.deg1 = [o.degree == 1 for o in outputs]
+        self.zeros = [np.zeros(d) for d in self.dims]
+
+    def vectors(self, evaluated, desired):
+        """y, value, feed-forward (d_value for degree 1, dd_value for 2), ydot, d_value, drift as the rows
+        of one 6 x m array (missing derivatives are 0; scalars broadcast over their output)."""
+        z = self.zeros
+        parts = [e[0] for e in evaluated]
+        parts += [d.value for d in desired]
+        dv = [zk if d.d_value is None else d.d_value for d, zk in zip(desired, z)]
+        parts += [v if deg1 else (zk if d.dd_value is None else d.dd_value)
+                  for v, d, zk, deg1 in zip(dv, desired, z, self.deg1)]
+        parts += [zk if deg1 else e[3] for e, zk, deg1 in zip(evaluated, z, self.deg1)]
+        parts += dv
+        parts += [e[2] for e in evaluated]
+        try:
+            return np.concatenate(parts).reshape(6, self.m)
+        except ValueError:
+            dims = self.dims * 6
+            return np.concatenate([np.broadcast_to(np.asarray(p, float), (d,)) for p, d in zip(parts, dims)]
+                                  ).reshape(6, self.m)
 
 
 class TSC:
@@ -140,7 +202,7 @@ class TSC:
         self.C1, self.c1 = grf_constraints(1, mu, f_min, cop_margin)     # one foot in contact
         self._lo = np.full(len(self.c), -1e20)
         self._lo1 = np.full(len(self.c1), -1e20)
-        self._w = {}
+        self._tasks = {}
 
     def _solver(self, n_in):
         s = self._solvers.get(n_in)
@@ -148,51 +210,49 @@ class TSC:
             s = self._solvers[n_in] = SOLVERS[self.solver_name](self.dyn.nu, n_in)
         return s
 
+    def _task_rows(self, outputs, desired):
+        """Stacked output Jacobian Jy, rhs = drift - commanded derivative (eq. (Ydes)), errors by name:
+        Ydot1_des = dv - K1p Y1,  Ydd2_des = ddv - K2p Y2 - K2d (ydot - dv)."""
+        ev = [o.evaluate(self.dyn) for o in outputs]
+        key = tuple(map(id, outputs))
+        task = self._tasks.get(key)
+        if task is None:
+            task = self._tasks[key] = _Task(outputs, ev)
+        y, val, ff, ydot, dv, drift = task.vectors(ev, desired)
+        e = y - val
+        rhs = drift - (ff - task.kp * e - task.kd * (ydot - dv))
+        errs = {name: e[sl] for name, sl in task.slices}
+        return np.concatenate([x[1] for x in ev]), rhs, errs, task.w
+
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
               w_du: float = 0.0) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
         w_du ||u - u_prev||^2 (torque smoothing)."""
         dyn = self.dyn
+        nu = dyn.nu
         t_a = time.perf_counter()
         n_feet = sum(bool(f) for f in feet) if ground else 0
         ground = ground and n_feet > 0
         dyn.constraints(ground, feet)
         t_b = time.perf_counter()
         cd = ConstrainedDynamics(dyn, ground, feet)
-        Js, rhs, errs = [], [], {}
-        for out, des in zip(outputs, desired):
-            y, Jy, drift, ydot = out.evaluate(dyn)
-            e = y - des.value
-            dv = 0.0 if des.d_value is None else des.d_value
-            if out.degree == 1:
-                cmd = dv - out.kp * e                       # Ydot1_des = -K1p Y1
-            else:
-                ddv = 0.0 if des.dd_value is None else des.dd_value
-                cmd = ddv - out.kp * e - out.kd * (ydot - dv)   # Ydd2_des = -K2p Y2 - K2d Ydot2
-            errs[out.name] = e
-            Js.append(Jy)
-            rhs.append(drift - cmd)
-        key = tuple(map(id, outputs))
-        w = self._w.get(key)
-        if w is None:
-            w = self._w[key] = np.concatenate([np.broadcast_to(np.asarray(o.weight, float), (j.shape[0],))
-                                               for o, j in zip(outputs, Js)])
-        Jy = np.concatenate(Js)
-        cA = Jy @ cd.Abar                                   # Ydot = cA u + cB
-        cB = Jy @ cd.bbar + np.concatenate(rhs)             # cB here already minus Ydot_des
+        Jy, rhs, errs, w = self._task_rows(outputs, desired)
+        G = Jy @ cd.X                                       # [cA, Jy bbar]: Ydot = cA u + Jy bbar + drift
+        cA = G[:, :nu]
+        cB = G[:, nu] + rhs                                 # cB here already minus Ydot_des
         t_c = time.perf_counter()
         WAt = cA.T * w                                      # A^T W
         H = WAt @ cA
-        H.flat[::H.shape[0] + 1] += self.reg + w_du
+        H.ravel()[::nu + 1] += self.reg + w_du
         g = WAt @ cB
         if w_du > 0.0 and u_prev is not None:
-            g = g - w_du * np.asarray(u_prev, float)
+            g -= w_du * np.asarray(u_prev, float)
         if ground:
             Cg, cg, lo = (self.C, self.c, self._lo) if n_feet == 2 else (self.C1, self.c1, self._lo1)
-            nf = Cg.shape[1]
-            C = Cg @ cd.A[:nf]
-            up = cg - Cg @ cd.b[:nf]
+            CY = Cg @ cd.Y[:Cg.shape[1]]                    # -[C_v A, C_v b]
+            C = np.negative(CY[:, :nu])
+            up = cg + CY[:, nu]
         else:
             C, lo, up = None, None, None
         t0 = time.perf_counter()
@@ -203,10 +263,9 @@ class TSC:
             if st2 == "solved" and math.isfinite(u2 @ u2):
                 u, status, it = u2, status + "->box_only", it + it2
             else:
-                u, status = np.clip(np.zeros(dyn.nu), u_lb, u_ub), status + "->zero"
+                u, status = np.clip(np.zeros(nu), u_lb, u_ub), status + "->zero"
         ts = time.perf_counter() - t0
-        F = cd.A @ u + cd.b
         self.last = cd
-        res = QPResult(u=u, status=status, forces=F, qdd=cd.Abar @ u + cd.bbar, solve_time=ts, iterations=it, y=errs)
+        res = QPResult(u=u, status=status, forces=cd.forces(u), solve_time=ts, iterations=it, y=errs, dynamics=cd)
         res.timing = dict(constraints=t_b - t_a, elimination_outputs=t_c - t_b, qp=time.perf_counter() - t_c)
         return res
