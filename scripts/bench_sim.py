@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Benchmark of the cassie_flip_sim simulator: steps per second, printed as a table.
 
-Part 1 (bare steps, here): raw ``mujoco.mj_step`` vs ``Simulator.step`` (motor-limit clipping +
+Part 1 (bare steps): raw ``mujoco.mj_step`` vs ``Simulator.step`` (motor-limit clipping +
 foot-force readout + contact detector), standing on the ground and in flight.
-Part 2 (lockstep node round trip): :func:`bench_lockstep`, to be filled in with the ROS node.
+Part 2 (lockstep node round trip): :func:`bench_lockstep`, sim_node against echo_controller, each
+its own process in a domain of its own (claimed like `flip` does; $FLIP_ROS_DOMAIN_ID if set), on
+two CPUs or both pinned to one.
 
     .venv/bin/python scripts/bench_sim.py [--steps 4000] [--flywheel I]
 """
@@ -18,10 +20,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.append(str(Path(__file__).resolve().parents[1] / "ros_ws" / "src" / "cassie_flip_sim"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import mujoco  # noqa: E402
 
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
+from flip_tools.rosenv import claim_domain, node_env  # noqa: E402
 
 
 def _rate(fn, steps: int) -> float:
@@ -61,8 +65,10 @@ def bench_lockstep(steps: int, work_us: float = 0.0, pin_one_core: bool = False)
     import os
     import re
     import subprocess
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-               ROS_DOMAIN_ID=str(90 + os.getpid() % 10))
+    domain = os.environ.get("FLIP_ROS_DOMAIN_ID")
+    claim = claim_domain(int(domain) if domain else None)
+    env = node_env(claim.domain_id)
+    env.pop("FLIP_LOCKSTEP_CPU", None)          # the pinning is taskset's here
     bindir = os.path.dirname(sys.executable)
     pin = ["taskset", "-c", "0"] if pin_one_core else []
     echo = subprocess.Popen(pin + [os.path.join(bindir, "echo_controller"), "--ros-args", "-p",
@@ -75,6 +81,7 @@ def bench_lockstep(steps: int, work_us: float = 0.0, pin_one_core: bool = False)
     finally:
         echo.send_signal(signal.SIGINT)
         echo.wait(timeout=10)
+        claim.release()
     m = re.search(r"real-time factor ([0-9.]+)", out.stderr + out.stdout)
     if not m:
         raise RuntimeError("sim_node did not report its real-time factor:\n" + out.stderr[-2000:])

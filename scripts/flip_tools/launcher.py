@@ -7,14 +7,24 @@
   counts), never through sleeps; fails fast if a watched process exits meanwhile.
 - Launcher.stop()/stop_all(): SIGINT, then SIGTERM, then SIGKILL, to the whole process group;
   reports how each process ended; nothing is left behind (checked by `leftovers()`).
+- Every process of one graph gets the same FLIP_LOCKSTEP_CPU (one of this process's CPUs, chosen
+  by the domain id so that graphs running side by side spread over the CPUs): the simulator and
+  its controller pin themselves to it (cassie_flip_sim.lockstep). An environment that sets
+  FLIP_LOCKSTEP_CPU (empty: no pinning) overrides it.
+- Every process gets FASTDDS_PROFILE as its Fast DDS default profile (FASTRTPS_DEFAULT_PROFILES_FILE,
+  unless the environment names one): shared-memory queues deep enough that a best-effort reader
+  stalled for seconds (the recorder on a loaded machine) loses nothing of a 2 kHz lockstep (the
+  default 512-message port queue overflowed after ~130 steps), and UDP (discovery) on loopback.
 """
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +33,47 @@ from typing import Callable, Iterable, Sequence
 from .rosenv import node_env
 
 _PR_SET_PDEATHSIG = 1
+LOCKSTEP_CPU_ENV = "FLIP_LOCKSTEP_CPU"      # read by cassie_flip_sim.lockstep.pin_to_lockstep_cpu
+PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+#: SHM: 16 MiB segment per participant, 16,384-message port queue (~4,000 lockstep steps for the
+#: recorder, which takes ~4 messages a step); UDP bound to loopback
+FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+    <transport_descriptor>
+      <transport_id>shm_deep</transport_id>
+      <type>SHM</type>
+      <segment_size>16777216</segment_size>
+      <port_queue_capacity>16384</port_queue_capacity>
+    </transport_descriptor>
+    <transport_descriptor>
+      <transport_id>udp_loopback</transport_id>
+      <type>UDPv4</type>
+      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>
+    </transport_descriptor>
+  </transport_descriptors>
+  <participant profile_name="flip_graph" is_default_profile="true">
+    <rtps>
+      <userTransports>
+        <transport_id>shm_deep</transport_id>
+        <transport_id>udp_loopback</transport_id>
+      </userTransports>
+      <useBuiltinTransports>false</useBuiltinTransports>
+    </rtps>
+  </participant>
+</profiles>
+"""
+
+
+def fastdds_profile_file() -> str:
+    """FASTDDS_PROFILE written once to the temp directory (named by its content)."""
+    digest = hashlib.sha1(FASTDDS_PROFILE.encode()).hexdigest()[:12]
+    path = Path(tempfile.gettempdir()) / f"flip-fastdds-{digest}.xml"
+    if not path.exists():
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(FASTDDS_PROFILE)
+        tmp.replace(path)
+    return str(path)
 
 
 def _child_setup(nice: int = 0):  # runs in the child between fork and exec
@@ -130,7 +181,10 @@ class Launcher:
         self.log_dir = Path(log_dir) if log_dir else None
         if self.log_dir:
             self.log_dir.mkdir(parents=True, exist_ok=True)
-        self.extra_env = dict(extra_env or {})
+        cpus = sorted(os.sched_getaffinity(0))
+        self.extra_env = {LOCKSTEP_CPU_ENV: os.environ.get(LOCKSTEP_CPU_ENV, cpus[domain_id % len(cpus)]),
+                          PROFILES_ENV: os.environ.get(PROFILES_ENV) or fastdds_profile_file(),
+                          **(extra_env or {})}
         self.procs: dict[str, ManagedProcess] = {}
 
     # -- start ---------------------------------------------------------------------------------

@@ -1,8 +1,13 @@
 """A stand-in for `ros2 bag record`: rclpy raw subscriptions -> rosbags' rosbag2 MCAP Writer.
 
 - Serialized CDR bytes go straight from the subscription (raw=True) to the bag; no
-  deserialisation on the hot path.
-- Log time = the RMW's receive timestamp (wall clock, ns) of each message.
+  deserialisation, and no executor: every POLL_S the main loop takes whatever each subscription
+  has queued (a 2 kHz lockstep sends ~8,000 messages a second; one executor callback each cost
+  ~250 µs of CPU, which the simulator and the controller need on a 2-core machine).
+- Log time = the RMW's receive timestamp (wall clock, ns) of each message, stamped by the DDS
+  reader when the message arrived (not when the main loop takes it), so the bag shows the rate
+  the graph ran at; a recorder whose DDS thread was stalled stamps the backlog when it resumes
+  (flip_tools.launcher's Fast DDS profile keeps that backlog instead of dropping it).
 - Subscription QoS follows the publishers (like rosbag2's adaptive QoS): reliable only if every
   publisher is reliable, transient-local only if every publisher is; before any publisher is seen,
   the contract table of docs/architecture.md decides. Depth is large (10,000) so bursts queue.
@@ -32,6 +37,9 @@ from .typestore import flip_typestore
 RECORDER_NODE = "flip_recorder"
 SUB_DEPTH = 10000
 EXCLUDE = {"/parameter_events"}
+POLL_S = 0.01          # main loop period: take what is queued, write it
+DISCOVER_S = 0.2       # period of the graph poll for new topics
+STATUS_S = 0.5         # period of /<node>/status
 
 
 def _rb_qos(reliable: bool, transient_local: bool, depth: int) -> Qos:
@@ -43,7 +51,13 @@ def _rb_qos(reliable: bool, transient_local: bool, depth: int) -> Qos:
                z, z, QosLiveliness.AUTOMATIC, z, False)
 
 
+def _ignore(_msg):
+    return None
+
+
 class Recorder:
+    """Subscriptions of one node (never spun by an executor) written to a bag by ``take_all``."""
+
     def __init__(self, node, bag_dir: str | Path, topics: list[str] | None = None,
                  all_topics: bool = False, types: dict[str, str] | None = None):
         self.node = node
@@ -59,15 +73,11 @@ class Recorder:
         self.counts: dict[str, int] = {}
         self.qos_used: dict[str, dict] = {}
         self.closed = False
-        self.t_first = None
-        self.t_last = None
         # progress for whoever orchestrates: {"counts": {...}} on /<node>/status, twice a second
         from std_msgs.msg import String
         self._String = String
         self.status_topic = node.get_fully_qualified_name() + "/status"
         self._status_pub = node.create_publisher(String, self.status_topic, 10)
-        self._poll_timer = node.create_timer(0.2, self.discover)
-        self._status_timer = node.create_timer(0.5, self.publish_status)
         self.discover()
 
     def publish_status(self) -> None:
@@ -150,43 +160,21 @@ class Recorder:
         self.conns[topic] = conn
         self.counts[topic] = 0
         self.qos_used[topic] = {"type": msgtype, "reliable": rel, "transient_local": tl}
-
-        def cb(msg, info, _topic=topic, _conn=conn):
-            self._write(_topic, _conn, msg, info)
-            self._drain(_topic, _conn)
-
-        self.subs[topic] = self.node.create_subscription(cls, topic, cb, qos, raw=True)
+        self.subs[topic] = self.node.create_subscription(cls, topic, _ignore, qos, raw=True)
 
     # -- hot path ---------------------------------------------------------------------------------
-    def _write(self, topic, conn, data: bytes, info) -> None:
-        t = info.get("received_timestamp") if isinstance(info, dict) else None
-        if not t:
-            t = time.time_ns()
-        self.writer.write(conn, int(t), data)
-        self.counts[topic] += 1
-        if self.t_first is None:
-            self.t_first = t
-        self.t_last = t
-
-    def _drain(self, topic, conn, limit: int = 1000) -> None:
-        """Take whatever else is queued on this subscription without going back to the executor."""
-        sub = self.subs.get(topic)
-        if sub is None:
-            return
-        with sub.handle:
-            for _ in range(limit):
-                r = sub.handle.take_message(sub.msg_type, True)
-                if r is None:
-                    return
-                self._write(topic, conn, r[0], r[1])
-
-    def drain_all(self) -> None:
-        for topic, sub in list(self.subs.items()):
-            if sub is not None:
-                try:
-                    self._drain(topic, self.conns[topic], limit=10**7)
-                except Exception:  # context already shut down
-                    pass
+    def take_all(self) -> None:
+        """Write every message queued on every subscription, stamped with its receive time."""
+        write = self.writer.write
+        for topic, sub in self.subs.items():
+            if sub is None:
+                continue
+            conn, n = self.conns[topic], 0
+            while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
+                t = r[1].get("received_timestamp") or time.time_ns()
+                write(conn, t, r[0])
+                n += 1
+            self.counts[topic] += n
 
     def close(self) -> dict:
         if not self.closed:
@@ -200,7 +188,6 @@ def record(bag_dir: str | Path, topics: list[str] | None = None, all_topics: boo
            stats_path: str | Path | None = None) -> dict:
     """Run a recorder in this process until SIGINT/SIGTERM or `duration` wall seconds."""
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
     bag_dir = Path(bag_dir)
     if bag_dir.exists():
@@ -216,17 +203,20 @@ def record(bag_dir: str | Path, topics: list[str] | None = None, all_topics: boo
     signal.signal(signal.SIGTERM, _on_signal)
     node = rclpy.create_node(node_name, start_parameter_services=False)
     rec = Recorder(node, bag_dir, topics, all_topics)
-    ex = SingleThreadedExecutor()
-    ex.add_node(node)
     t0 = time.monotonic()
+    next_discover = next_status = t0
     try:
-        while not stop["flag"]:
-            if duration is not None and time.monotonic() - t0 >= duration:
-                break
-            ex.spin_once(timeout_sec=0.1)
-        rec.drain_all()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        rec.drain_all()
+        while not stop["flag"] and (duration is None or time.monotonic() - t0 < duration):
+            rec.take_all()
+            now = time.monotonic()
+            if now >= next_discover:
+                rec.discover()
+                next_discover = now + DISCOVER_S
+            if now >= next_status:
+                rec.publish_status()
+                next_status = now + STATUS_S
+            time.sleep(POLL_S)
+        rec.take_all()
     finally:
         counts = rec.close()
         try:

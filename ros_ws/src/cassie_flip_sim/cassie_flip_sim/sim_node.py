@@ -4,16 +4,18 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
   1. at a contact event, publish ``/contact_events``; while a flip plan is in force, hold until the
      planner's reference for the domain entered is on the graph (the paper's simulation does the
      same), so a run does not depend on the planner's wall time;
-  2. publish ``/clock``, ``/joint_states``, ``/odom`` stamped k·dt;
+  2. publish ``/clock``, ``/odom``, ``/joint_states`` stamped k·dt (``/joint_states`` last: the
+     controller wakes on it);
   3. wait for the ``/motor_command`` with ``step == k`` (older ones are dropped; on a timeout the
      state is sent again and the silence is reported), apply it, step.
+The per-step messages are published from preallocated serialized templates and the commands read
+from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``).
 Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
 counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
 (zero torques, no waiting).
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 
@@ -27,8 +29,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from .lockstep import (LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp,
-                       stamp_to_ns)
+from .lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage, SubscriptionSet, fields,
+                       joint_state_layout, motor_command_layout, ns_to_stamp,
+                       odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
 from .contacts import Event
 from .model import Scenario, export_mjcf
 from .simulator import Simulator
@@ -41,6 +44,9 @@ WATCHDOG_STEPS = 40
 WATCHDOG_DAMPING = 5.0
 #: wall time without a command before the state is sent again and the silence is reported
 COMMAND_RESEND_S = 0.05
+#: once the subscribers have matched the simulator's publishers, the wall time left for their side
+#: of the match before the first step (a best-effort reader drops what comes before it matches)
+MATCH_SETTLE_S = 0.3
 
 
 def make_scenario(name, platform_height, ground_offset):
@@ -98,7 +104,8 @@ class SimNode:
         self.pub_events = n.create_publisher(ContactEvent, '/contact_events', LATCHED_QOS)
         self.pub_desc = n.create_publisher(String, '/robot_description', LATCHED_QOS)
         self.subs = SubscriptionSet(n, [(MotorCommand, '/motor_command', STREAM_QOS),
-                                        (FlipReference, '/fslip/reference', LATCHED_QOS)])
+                                        (FlipReference, '/fslip/reference', LATCHED_QOS)],
+                                    raw=('/motor_command',))
         # Services are served by a second node spun by an executor between steps.
         self.srv_node = rclpy.create_node('sim_node_services')
         self.srv_node.create_service(Trigger, '/sim/reset', self._on_reset)
@@ -116,34 +123,30 @@ class SimNode:
 
     # -- messages ----------------------------------------------------------------------------
     def _prealloc_messages(self):
-        self.msg_clock = Clock()
-        self.msg_js = JointState()
-        self.msg_js.name = list(self.sim.joint_names)
-        self.msg_odom = Odometry()
-        self.msg_odom.header.frame_id = 'world'
-        self.msg_odom.child_frame_id = 'pelvis'
+        n = len(self.sim.joint_names)
+        self.msg_clock = RawMessage(Clock())
+        self.msg_js = RawMessage(JointState(name=list(self.sim.joint_names), position=[0.0] * n,
+                                            velocity=[0.0] * n, effort=[0.0] * n), joint_state_layout)
+        odom = Odometry(child_frame_id='pelvis')
+        odom.header.frame_id = 'world'
+        self.msg_odom = RawMessage(odom, odometry_layout)
+        self.cmd_names = None       # the commands' motor names, as motor_command_layout gives them
 
     def _publish_state(self, k):
         ns = k * self.dt_ns
-        ns_to_stamp(ns, self.msg_clock.clock)
-        self.pub_clock.publish(self.msg_clock)
-        js = self.msg_js
-        ns_to_stamp(ns, js.header.stamp)
-        js.position = self.sim.joint_positions().tolist()
-        js.velocity = self.sim.joint_velocities().tolist()
-        js.effort = self.sim.joint_efforts().tolist()
-        self.pub_js.publish(js)
-        od = self.msg_odom
-        ns_to_stamp(ns, od.header.stamp)
+        for m in (self.msg_clock, self.msg_odom, self.msg_js):
+            m.stamp(ns)
+        pose, twist = self.msg_odom.fields['pose'], self.msg_odom.fields['twist']
         pos, quat = self.sim.pelvis_pose()
-        lin_body, ang_body = self.sim.pelvis_twist('local')
-        p = od.pose.pose
-        p.position.x, p.position.y, p.position.z = (float(v) for v in pos)
-        p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z = (float(v) for v in quat)
-        t = od.twist.twist
-        t.linear.x, t.linear.y, t.linear.z = (float(v) for v in lin_body)
-        t.angular.x, t.angular.y, t.angular.z = (float(v) for v in ang_body)
-        self.pub_odom.publish(od)
+        pose[:3], pose[3:6], pose[6] = pos, quat[1:], quat[0]       # orientation x, y, z, w
+        twist[:3], twist[3:] = self.sim.pelvis_twist('local')
+        js = self.msg_js.fields
+        js['position'][:] = self.sim.joint_positions()
+        js['velocity'][:] = self.sim.joint_velocities()
+        js['effort'][:] = self.sim.joint_efforts()
+        self.pub_clock.publish(self.msg_clock.data())
+        self.pub_odom.publish(self.msg_odom.data())
+        self.pub_js.publish(self.msg_js.data())
 
     def _publish_event(self, k, event):
         msg = ContactEvent()
@@ -186,29 +189,37 @@ class SimNode:
     def _note_reference(self, msg):
         self.plan_in_force = (msg.plan_id, msg.domain, stamp_to_ns(msg.start_time))
 
-    def _handle_incoming(self, taken, k):
-        """Sort taken messages; return the command for step k if one came."""
-        cmd = None
+    def _commands(self, taken):
+        """``(step, torques)`` of the serialized commands taken; references are noted."""
+        out = []
         for topic, msg in taken:
             if topic == '/fslip/reference':
                 self._note_reference(msg)
-            elif msg.step == k and len(msg.effort) == 11:
-                cmd = msg
-            elif msg.step == k:
+                continue
+            self.cmd_names, layout = motor_command_layout(msg, self.cmd_names)
+            f = fields(msg, layout)
+            out.append((int(f['step'][0]), f['effort']))
+        return out
+
+    def _handle_incoming(self, taken, k):
+        """Sort taken messages; return the torques for step k if they came."""
+        u = None
+        for step, effort in self._commands(taken):
+            if step == k and len(effort) == 11:
+                u = effort
+            elif step == k:
                 self.node.get_logger().error(
-                    f'/motor_command for step {k} has {len(msg.effort)} torques, not 11: ignored')
-        return cmd
+                    f'/motor_command for step {k} has {len(effort)} torques, not 11: ignored')
+        return u
 
     def _newest_command(self, taken, k):
-        """Realtime mode: the newest well-formed command answering a recent step (≤ k)."""
+        """Realtime mode: the torques of the newest well-formed command answering a recent step
+        (≤ k)."""
         best = None
-        for topic, msg in taken:
-            if topic == '/fslip/reference':
-                self._note_reference(msg)
-            elif len(msg.effort) == 11 and k - WATCHDOG_STEPS <= msg.step <= k:
-                if best is None or msg.step > best.step:
-                    best = msg
-        return best
+        for step, effort in self._commands(taken):
+            if len(effort) == 11 and k - WATCHDOG_STEPS <= step <= k and (best is None or step > best[0]):
+                best = (step, effort)
+        return None if best is None else best[1]
 
     def _hold_for_reference(self, k, domain):
         """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
@@ -247,6 +258,9 @@ class SimNode:
                 self.executor.spin_once(timeout_sec=0.01)
                 if not rclpy.ok():
                     return 0
+            settled = time.monotonic() + MATCH_SETTLE_S
+            while time.monotonic() < settled and rclpy.ok():
+                self.executor.spin_once(timeout_sec=0.01)
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel}')
@@ -254,59 +268,61 @@ class SimNode:
         k = 0
         late = missing = 0
         last_cmd_k, damping = 0, False
-        while rclpy.ok() and (n_steps is None or k < n_steps):
-            if self.reset_requested:
-                self.sim.reset()
-                self.reset_requested = False
-                log.info('reset to standing')
-            for event in self.sim.pop_events():
-                self._publish_event(k, event)
-                if self.mode == 'lockstep':
-                    self._hold_for_reference(k, domain_entered(event))
-            touching = self.sim.body_contacts()
-            if touching and not self.body_contact:
-                self._publish_body_contact(k, touching)
-            self.body_contact = bool(touching)
-            self._publish_state(k)
-            if self.controller == 'tsc':
-                if self.mode == 'lockstep':
-                    cmd = self._wait_command(k)
-                    if cmd is None:
-                        break
-                    self.command[:] = cmd.effort
-                else:
-                    cmd = self._newest_command(self.subs.take_all(), k)
-                    if cmd is not None:
-                        self.command[:] = cmd.effort
-                        last_cmd_k = k
+        try:   # the summary also when SIGINT (KeyboardInterrupt) ends the run
+            while rclpy.ok() and (n_steps is None or k < n_steps):
+                if self.reset_requested:
+                    self.sim.reset()
+                    self.reset_requested = False
+                    log.info('reset to standing')
+                for event in self.sim.pop_events():
+                    self._publish_event(k, event)
+                    if self.mode == 'lockstep':
+                        self._hold_for_reference(k, domain_entered(event))
+                touching = self.sim.body_contacts()
+                if touching and not self.body_contact:
+                    self._publish_body_contact(k, touching)
+                self.body_contact = bool(touching)
+                self._publish_state(k)
+                if self.controller == 'tsc':
+                    if self.mode == 'lockstep':
+                        cmd = self._wait_command(k)
+                        if cmd is None:
+                            break
+                        self.command[:] = cmd
                     else:
-                        missing += 1
-                        if k - last_cmd_k > WATCHDOG_STEPS:
-                            if not damping:
-                                log.warn(f'controller silent for {(k - last_cmd_k) * self.dt * 1e3:.0f} ms:'
-                                         ' motors to damping')
-                            damping = True
-                            self.command[:] = -WATCHDOG_DAMPING * self.sim.motor_velocities()
-                    if cmd is not None and damping:
-                        log.info('controller back: damping released')
-                        damping = False
-            self.sim.step(self.command)
-            k += 1
-            if self.mode == 'realtime':
-                lag = wall0 + k * self.dt - time.monotonic()
-                if lag > 0:
-                    time.sleep(lag)
-                elif lag < -self.dt:
-                    late += 1       # more than one step behind the wall clock
-            if k % 200 == 0:
-                self.executor.spin_once(timeout_sec=0.0)
-        wall = time.monotonic() - wall0
-        sim_t = k * self.dt
-        log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
-                 f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
-                 f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
-                 + (f'; realtime: {late} late steps, {missing} steps without a new command'
-                    if self.mode == 'realtime' else ''))
+                        cmd = self._newest_command(self.subs.take_all(), k)
+                        if cmd is not None:
+                            self.command[:] = cmd
+                            last_cmd_k = k
+                        else:
+                            missing += 1
+                            if k - last_cmd_k > WATCHDOG_STEPS:
+                                if not damping:
+                                    log.warn(f'controller silent for {(k - last_cmd_k) * self.dt * 1e3:.0f}'
+                                             ' ms: motors to damping')
+                                damping = True
+                                self.command[:] = -WATCHDOG_DAMPING * self.sim.motor_velocities()
+                        if cmd is not None and damping:
+                            log.info('controller back: damping released')
+                            damping = False
+                self.sim.step(self.command)
+                k += 1
+                if self.mode == 'realtime':
+                    lag = wall0 + k * self.dt - time.monotonic()
+                    if lag > 0:
+                        time.sleep(lag)
+                    elif lag < -self.dt:
+                        late += 1       # more than one step behind the wall clock
+                if k % 200 == 0:
+                    self.executor.spin_once(timeout_sec=0.0)
+        finally:
+            wall = time.monotonic() - wall0
+            sim_t = k * self.dt
+            log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
+                     f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
+                     f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
+                     + (f'; realtime: {late} late steps, {missing} steps without a new command'
+                        if self.mode == 'realtime' else ''))
         return 0
 
     def _wait_command(self, k):
@@ -328,6 +344,7 @@ class SimNode:
 
 
 def main(args=None):
+    pin_to_lockstep_cpu()
     rclpy.init(args=args)
     try:
         node = SimNode()

@@ -217,8 +217,9 @@ class ControllerConfig:
     # at the world angle from T1 on, with the body still ~0.8 rad short, the legs swung ~50 deg relative
     # to the pelvis in 0.1 s and threw it round (measured backflip: +1.6 rad over-rotation).
     flight_legs_on_pelvis: bool = True
-    # LANDING: track the planner's landing re-solve (paper §III-C) or land with the controller's own
-    # profiles (leg catch, bounded momentum removal).  Measured (tests/offline_flip.py, backflip,
+    # LANDING after a somersault: track the planner's landing re-solve (paper §III-C) or land with the
+    # controller's own profiles (leg catch, bounded momentum removal).  After a hop the re-solve is
+    # tracked (with the own profiles the FSLIP hop bounced: a 20 ms lift-off 0.14 s after touch-down).  Measured (tests/offline_flip.py, backflip,
     # motor speed scale 3, apex 1.3 m): tracking the re-solve fell 0.26 s after touch-down (its momentum
     # swings through zero, -20 -> +29 -> 0 kg*m^2/s, because the FSLIP flywheel torque also pushes the
     # point mass), the controller's own landing stood up.
@@ -298,6 +299,7 @@ class Controller:
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
+        self._somersault = False
         self.domain = Domain.STANDING
         self.t_enter = None
         self._pending_event = None
@@ -310,10 +312,13 @@ class Controller:
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
-        """Store a reference (the latest per domain wins); a LANDING one only with
-        ``track_landing_reference`` (else it is kept as ``landing_plan`` and the controller's own
-        landing runs)."""
-        if ref.domain == Domain.LANDING and not self.cfg.track_landing_reference:
+        """Store a reference (the latest per domain wins).  A LANDING one after a somersault (a FLIGHT
+        reference turning the pelvis by more than 90 deg) only with ``track_landing_reference``; else it
+        is kept as ``landing_plan`` and the controller's own landing runs."""
+        if ref.domain == Domain.FLIGHT and ref.has("phi_pitch") and len(ref.t):
+            col = ref.names.index("phi_pitch")
+            self._somersault = abs(ref.value[-1, col] - ref.value[0, col]) > math.pi / 2
+        if ref.domain == Domain.LANDING and self._somersault and not self.cfg.track_landing_reference:
             self.landing_plan = ref
             return
         self.refs[ref.domain] = ref

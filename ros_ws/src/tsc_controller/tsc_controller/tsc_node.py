@@ -5,6 +5,10 @@ torques and publishes one ``/motor_command`` with ``step == k``. A state seen ag
 re-sends on a timeout) gets the same command again: the node is idempotent per step. References
 (``/fslip/reference``) and contact events (``/contact_events``) switch the domain; with neither,
 the controller holds the standing pose.
+
+The per-step messages stay serialized (``cassie_flip_sim.lockstep``): the state is read from
+numpy views of the received bytes, the command patched into a preallocated one. The simulator
+publishes ``/odom`` before ``/joint_states``, so the node wakes on ``/joint_states`` alone.
 """
 from __future__ import annotations
 
@@ -13,8 +17,10 @@ import time
 
 import numpy as np
 import rclpy
-from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, SubscriptionSet,
-                                      stamp_to_ns)
+from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage,
+                                      SubscriptionSet, fields, joint_state_layout,
+                                      motor_command_layout, odometry_layout,
+                                      pin_to_lockstep_cpu, read_stamp_ns, stamp_to_ns)
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
@@ -22,9 +28,10 @@ from std_msgs.msg import String
 
 from .domains import Controller, SampledReference
 from .dynamics import MOTOR_NAMES
-from .state import state_from_ros
 
 DT_NS = 500_000
+#: topics that wake the node: all but /odom, which comes before /joint_states
+WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description')
 
 
 class TscNode:
@@ -36,14 +43,15 @@ class TscNode:
             (ContactEvent, '/contact_events', LATCHED_QOS),
             (FlipReference, '/fslip/reference', LATCHED_QOS),
             (String, '/robot_description', LATCHED_QOS),
-        ])
+        ], raw=('/joint_states', '/odom'))
         self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
         self.controller = None
         # leg motors' no-load speeds x this: the same robot as the simulator's (sim_node parameter)
         self.motor_speed_scale = float(self.node.declare_parameter('motor_speed_scale', 1.0).value)
-        self.cmd = MotorCommand()
-        self.cmd.name = list(MOTOR_NAMES)
-        self.js = self.odom = None
+        self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
+                              motor_command_layout)
+        self.js = self.odom = None          # the newest serialized /joint_states and /odom
+        self.js_names = None
         self.answered_ns = -1
         self.tick_us = []
 
@@ -65,25 +73,36 @@ class TscNode:
         self.node.get_logger().info(f'reference: plan {msg.plan_id} domain {msg.domain}, '
                                     f'{n_t} samples from t={ref.start_time:.3f} s')
 
+    def _state(self):
+        """(q, v) from the serialized /joint_states and /odom."""
+        self.js_names, layout = joint_state_layout(self.js, self.js_names)
+        js = fields(self.js, layout)
+        od = fields(self.odom, odometry_layout(self.odom)[1])
+        pose, twist = od['pose'], od['twist']
+        return self.controller.model_info.from_ros(self.js_names[0], js['position'], js['velocity'],
+                                                   pose[:3], pose[3:], twist[:3], twist[3:])
+
     def _answer(self, k_ns):
-        q, v = state_from_ros(self.controller.model_info, self.js, self.odom)
+        q, v = self._state()
         t0 = time.perf_counter()
         u, info = self.controller.compute(q, v, k_ns * 1e-9)
         dt_us = (time.perf_counter() - t0) * 1e6
         self.tick_us.append(dt_us)
         cmd = self.cmd
-        cmd.header.stamp = self.js.header.stamp
-        cmd.step = k_ns // DT_NS
-        cmd.effort = [float(x) for x in u]
-        cmd.compute_time_us = float(dt_us)
-        self.pub.publish(cmd)
+        cmd.stamp(k_ns)
+        cmd.fields['step'][0] = k_ns // DT_NS
+        cmd.fields['effort'][:] = u
+        cmd.fields['compute_time_us'][0] = dt_us
+        self.pub.publish(cmd.data())
         self.answered_ns = k_ns
 
     def run(self):
         log = self.node.get_logger()
         pending = []
         while rclpy.ok():
-            taken = self.subs.wait(1.0)
+            odom_behind = self.js is not None and (self.odom is None or
+                                                   read_stamp_ns(self.odom) < read_stamp_ns(self.js))
+            taken = self.subs.wait(1.0, on=None if odom_behind else WAKE_TOPICS)
             if self.subs.interrupted:
                 break
             for topic, msg in taken:
@@ -106,11 +125,11 @@ class TscNode:
                     self.controller.on_contact_event(msg.event, msg.domain, stamp_to_ns(msg.header.stamp) * 1e-9)
             if self.controller is None or self.js is None or self.odom is None:
                 continue
-            k_js, k_od = stamp_to_ns(self.js.header.stamp), stamp_to_ns(self.odom.header.stamp)
-            if k_js != k_od:
+            k_js = read_stamp_ns(self.js)
+            if k_js != read_stamp_ns(self.odom):
                 continue
             if k_js == self.answered_ns:
-                self.pub.publish(self.cmd)      # the simulator asked again: same answer
+                self.pub.publish(self.cmd.data())      # the simulator asked again: same answer
             elif k_js > self.answered_ns or k_js == 0:
                 self._answer(k_js)
         if self.tick_us:
@@ -119,6 +138,7 @@ class TscNode:
 
 
 def main(args=None):
+    pin_to_lockstep_cpu()
     rclpy.init(args=args)
     node = TscNode()
     try:
