@@ -70,3 +70,14 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     out = {k: (np.array(v) if k not in ("events", "fell") else v) for k, v in log.items()}
     out.update(sim=sim, ctl=ctl, session=session)
     return out
+
+
+def assert_stands(sim, ctl, z_stand):
+    """The end of a landed flip: STANDING, pelvis at standing height, upright, flywheel momentum out."""
+    from tsc_controller import Domain
+    assert ctl.domain == Domain.STANDING
+    p, (w, x, y, z) = sim.pelvis_pose()
+    assert abs(p[2] - z_stand) < 0.03
+    tilt = np.degrees(np.arccos(np.clip(1 - 2 * (x * x + y * y), -1, 1)))
+    assert tilt < 10.0
+    assert abs(sim.centroidal_pitch_momentum()) < 1.0

@@ -112,9 +112,10 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
             cmd = bag["/motor_command"]
             assert np.array_equal(cmd["step"], np.round(cmd["t"] / 0.0005))  # each command names its step
         # log time = when the DDS reader got the message, not when the recorder took it (it takes
-        # what is queued every 10 ms): consecutive steps are spread, and the bag shows the rate
+        # what is queued every 10 ms, so take times would repeat within each batch): steps carry
+        # distinct, increasing log times, and the bag shows the rate
         dt_log = np.diff(bag["/clock"]["t_log"])
-        assert np.all(dt_log >= 0) and np.median(dt_log) > 1e-4
+        assert np.all(dt_log >= 0) and np.count_nonzero(dt_log > 0) > 0.9 * len(dt_log)
     for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang"))):
         _, ia = np.unique(a[topic]["t"], return_index=True)
         _, ib = np.unique(b[topic]["t"], return_index=True)

@@ -3,14 +3,11 @@ per-frame API, on random states: point positions, world-aligned Jacobians, class
 and the constraint rows (contact rows in the foot-heading basis, loop rows S R1^T (J_a - J_b) with drift
 S R1^T (a_a - a_b - w_1 x (v_a - v_b)))."""
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from cassie_flip_sim.model import export_mjcf
-from test_tsc_dynamics import random_state
+from test_tsc_dynamics import _frame_terms, random_state
 from tsc_controller.dynamics import N_CONTACT, SIDES, Dynamics
-
-LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 @pytest.fixture(scope="module")
@@ -20,15 +17,8 @@ def dyn():
 
 def _frame(dyn, name, q, v):
     """(p, J_lin, classical drift, pdot, omega, R) of a point by Pinocchio's frame API."""
-    m = dyn.model
-    d = m.createData()
-    pin.forwardKinematics(m, d, q, v, np.zeros(m.nv))
-    pin.computeJointJacobians(m, d, q)
-    pin.updateFramePlacements(m, d)
-    f = dyn.points[name].frame_id
-    J = pin.getFrameJacobian(m, d, f, LWA)
-    return (d.oMf[f].translation.copy(), J[:3], pin.getFrameClassicalAcceleration(m, d, f, LWA).linear.copy(),
-            J[:3] @ v, J[3:] @ v, d.oMf[f].rotation.copy())
+    M, J, a, Jw = _frame_terms(dyn, [name], q, v)[name]
+    return M.translation, J, a, J @ v, Jw @ v, M.rotation
 
 
 @pytest.mark.parametrize("seed", [0, 1])

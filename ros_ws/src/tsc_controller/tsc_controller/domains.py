@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
+import pinocchio as pin
 
 from . import outputs as O
 from .dynamics import SIDES, Dynamics
@@ -243,22 +244,6 @@ class ControllerConfig:
     torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
 
 
-class SagittalPitch(O.Output):
-    """Unwrapped sagittal pelvis pitch theta (see Controller._update_pitch), degree 2:
-    theta_dot = e_y^T R omega_local (the world-y angular velocity), drift 0 (omega x omega = 0)."""
-
-    def __init__(self, name="pitch", controller=None, **kw):
-        super().__init__(name, **kw)
-        self._ctl = controller
-
-    def evaluate(self, dyn):
-        b = dyn.model.idx_vs[dyn.base_jid]
-        ey_R = dyn.data.oMi[dyn.base_jid].rotation[1]
-        J = np.zeros((1, dyn.nv))
-        J[0, b + 3:b + 6] = ey_R
-        return np.array([self._ctl.pitch]), J, np.zeros(1), J @ dyn.v
-
-
 def _mk(cls, name, gains, key=None, **kw):
     w, kp, kd = gains[key or name]
     return cls(name=name, weight=w, kp=kp, kd=kd, **kw)
@@ -287,7 +272,7 @@ class Controller:
                                 _mk(O.ComPosition, "com", gj, axes=(0, 1)),
                                 _mk(O.PelvisOrientation, "pelvis", gj, axes=("roll", "pitch", "yaw"))]
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
-        self.o_pitch = _mk(SagittalPitch, "pitch", g, controller=self)
+        self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=lambda: self.pitch)
         self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
         self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
@@ -529,7 +514,9 @@ class Controller:
             # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
             off = np.zeros(3)
             if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
-                th_T = ref.sample(ref.duration)["phi_pitch"][0]
+                if f.get("ref") is not ref:                  # final pitch of this flight reference
+                    f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
+                th_T = f["th_T"]
                 R = dyn.data.oMi[dyn.base_jid].rotation
                 w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
                 # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
@@ -549,7 +536,6 @@ class Controller:
 
     def _rest_inertia(self):
         """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
-        import pinocchio as pin
         dyn = self.dyn
         pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
         return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I

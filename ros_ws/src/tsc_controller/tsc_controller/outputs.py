@@ -295,3 +295,18 @@ class FootPoints(Output):
             self._idx = np.array([dyn.point_index(f"{self.side}_{k}") for k in ("toe", "heel")])
         i = self._idx
         return dyn.P[i].ravel(), dyn.Jp[i].reshape(6, dyn.nv), dyn.drift[i].ravel(), dyn.pdot[i].ravel()
+
+
+class SagittalPitch(Output):
+    """Unwrapped sagittal pelvis pitch theta from ``source()`` (the controller's, continued across
+    +-pi), degree 2: theta_dot = e_y^T R omega_local (world-y angular velocity), drift 0 (omega x omega = 0)."""
+
+    def __init__(self, name="pitch", source=None, **kw):
+        super().__init__(name, **kw)
+        self._source = source
+
+    def evaluate(self, dyn):
+        b = dyn.model.idx_vs[dyn.base_jid]
+        J = np.zeros((1, dyn.nv))
+        J[0, b + 3:b + 6] = dyn.data.oMi[dyn.base_jid].rotation[1]
+        return np.array([self._source()]), J, np.zeros(1), J @ dyn.v
