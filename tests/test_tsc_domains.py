@@ -109,3 +109,25 @@ def test_late_reference_is_not_joined_midway():
     doms = _run(ctl, sim, 0.4, tick)
     assert np.all(doms == Domain.STANDING)
     assert Domain.JUMPING not in ctl.refs
+
+
+def test_push_under_way_is_not_abandoned():
+    """JUMPING past its reference's end: back to STANDING after ``grace`` if the COM is not rising,
+    but kept (outputs held at the plan's end) while it rises fast, up to ``push_grace``; a LIFT_OFF
+    in that time enters FLIGHT."""
+    ctl = Controller(export_mjcf())
+    cfg, m = ctl.cfg, ctl.dyn.mass
+    ref = SampledReference(Domain.JUMPING, [0.0, 1.0], ["L"], [0.8, 0.95], start_time=0.5)
+
+    def state_after(late, vz, event=None):
+        ctl.refs = {Domain.JUMPING: ref}
+        ctl.domain, ctl._pending_event = Domain.JUMPING, event
+        ctl.dyn.hg_lin = np.array([0.0, 0.0, m * vz])   # COM momentum of the last update
+        ctl._switch(1.5 + late)
+        return ctl.domain
+    assert state_after(0.5 * cfg.grace, 0.0) == Domain.JUMPING
+    assert state_after(2.0 * cfg.grace, 0.0) == Domain.STANDING
+    assert cfg.push_grace > 2.0 * cfg.grace
+    assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising) == Domain.JUMPING
+    assert state_after(cfg.push_grace + 0.01, 2.0 * cfg.push_rising) == Domain.STANDING
+    assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising, (0, 1.5 + 2.0 * cfg.grace)) == Domain.FLIGHT

@@ -105,3 +105,29 @@ def test_torque_limits_match_simulator_envelope():
         lb, ub = tl.bounds(w)
         lb2, ub2 = torque_bounds(w)
         assert np.allclose(lb, lb2) and np.allclose(ub, ub2)
+
+
+def test_cop_margin_per_solve(controllers):
+    """``cop_margin`` passed to a solve keeps each foot's centre of pressure that fraction of the foot
+    length from toe and heel (each carries >= margin of the foot's load); without it the same tasks
+    put it at an end (the load all on toe or heel, up to f_min) in some of the trials."""
+    ctl = controllers["daqp"]
+    dyn = ctl.dyn
+    rng = np.random.default_rng(11)
+    share_free, share_margin = [], []
+    for trial in range(25):
+        q, v = random_state(dyn, rng, True)
+        v *= 0.5
+        dyn.update(q, v)
+        lb, ub = torque_bounds(v[dyn.motor_v])
+        outs, des = _random_task(ctl, rng)
+        for margin, shares in ((None, share_free), (0.2, share_margin)):
+            res = ctl.tsc.solve(outs, des, True, lb, ub, cop_margin=margin)
+            if res.status != "solved":
+                continue
+            for k in range(2):
+                toe, heel = res.forces[5 * k + 2], res.forces[5 * k + 4]
+                shares.append(min(toe, heel) / (toe + heel))
+    assert len(share_margin) >= 20 and len(share_free) >= 20
+    assert min(share_margin) >= 0.2 - 1e-4
+    assert min(share_free) < 0.2

@@ -187,6 +187,13 @@ class ControllerConfig:
     mu: float = 0.6
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
+    # domain -> cop_margin there (overrides).  Measured, frontflip push-off (motor speed scale 3, apex
+    # 1.3 m, tests/offline_flip.py): without a margin the heels rose 8 cm (the flat-foot QP kept them
+    # at f_min, the real feet rolled onto the toes) and the jump left with 1.86 m/s up against 2.31
+    # planned; {JUMPING: 0.2} kept them down (3 mm) and gave 2.13 m/s.  Off by default: with it
+    # (and a JUMPING COM weight of 100) both flips follow the planned forward speed, but the
+    # backflip, tuned around the faster forward take-off, then lands with its feet ahead and falls.
+    cop_margin_domains: dict = field(default_factory=dict)
     rigid_springs: bool = True
     motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
     # domains in which the controller is fed zero leaf-spring rates (rigid-spring model).  JUMPING: the
@@ -199,6 +206,13 @@ class ControllerConfig:
     L_stand: float | None = None      # default: leg length of the first state seen
     blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
     grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
+    # ... unless the push is still under way: with the COM rising faster than ``push_rising`` the
+    # JUMPING outputs (held at the plan's end) stay up to ``push_grace`` past the end.  Measured,
+    # frontflip (motor speed scale 3, apex 1.3 m): the leg extension lagged the plan by 0.24 m at the
+    # knees' torque limit and the feet left the ground 0.1 s after the plan's end, rising at 2.3 m/s;
+    # STANDING had taken over and the flight ran without its outputs (the body turned backwards).
+    push_grace: float = 0.3
+    push_rising: float = 1.0          # m/s
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
     catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
@@ -339,7 +353,7 @@ class Controller:
             r = self.refs.get(Domain.JUMPING)
             if ev is not None and ev[0] == LIFT_OFF:
                 self._enter(Domain.FLIGHT, ev[1])
-            elif r is None or t > r.start_time + r.duration + self.cfg.grace:
+            elif r is None or self._push_over(t, r.start_time + r.duration):
                 self.refs.pop(Domain.JUMPING, None)
                 self._enter(Domain.STANDING, t)
         elif d == Domain.FLIGHT:
@@ -357,6 +371,15 @@ class Controller:
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.STANDING, t)
+
+    def _push_over(self, t, t_end):
+        """JUMPING has run past its reference without a lift-off: over after ``grace``, or after
+        ``push_grace`` while the COM still rises faster than ``push_rising`` (see the config)."""
+        late = t - t_end
+        if late <= self.cfg.grace:
+            return False
+        rising = float(self.dyn.hg_lin[2]) / self.dyn.mass > self.cfg.push_rising
+        return not rising or late > self.cfg.push_grace
 
     # -------------------------------------------------------------- outputs + desired
     def _feet(self):
@@ -653,7 +676,8 @@ class Controller:
         lb, ub = self.limits.bounds(v[self.dyn.motor_v])
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
-            res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du)
+            res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,
+                                 self.cfg.cop_margin_domains.get(int(self.domain)))
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

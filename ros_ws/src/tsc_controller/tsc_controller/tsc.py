@@ -198,11 +198,19 @@ class TSC:
         self.reg = reg
         self.solver_name = solver
         self._solvers = {}
-        self.C, self.c = grf_constraints(2, mu, f_min, cop_margin)
-        self.C1, self.c1 = grf_constraints(1, mu, f_min, cop_margin)     # one foot in contact
-        self._lo = np.full(len(self.c), -1e20)
-        self._lo1 = np.full(len(self.c1), -1e20)
+        self.mu, self.f_min, self.cop_margin = mu, f_min, cop_margin
+        self._grf = {}
+        self.C, self.c, self._lo = self._grf_rows(2, cop_margin)
+        self.C1, self.c1, self._lo1 = self._grf_rows(1, cop_margin)     # one foot in contact
         self._tasks = {}
+
+    def _grf_rows(self, n_feet, cop_margin):
+        """(C, c, lower) of :func:`grf_constraints` for n_feet and a CoP margin, built once."""
+        key = (n_feet, cop_margin)
+        if key not in self._grf:
+            C, c = grf_constraints(n_feet, self.mu, self.f_min, cop_margin)
+            self._grf[key] = (C, c, np.full(len(c), -1e20))
+        return self._grf[key]
 
     def _solver(self, n_in):
         s = self._solvers.get(n_in)
@@ -225,10 +233,10 @@ class TSC:
         return np.concatenate([x[1] for x in ev]), rhs, errs, task.w
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
-              w_du: float = 0.0) -> QPResult:
+              w_du: float = 0.0, cop_margin: float | None = None) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
-        w_du ||u - u_prev||^2 (torque smoothing)."""
+        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` overrides the constructor's."""
         dyn = self.dyn
         nu = dyn.nu
         t_a = time.perf_counter()
@@ -249,7 +257,7 @@ class TSC:
         if w_du > 0.0 and u_prev is not None:
             g -= w_du * np.asarray(u_prev, float)
         if ground:
-            Cg, cg, lo = (self.C, self.c, self._lo) if n_feet == 2 else (self.C1, self.c1, self._lo1)
+            Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
             CY = Cg @ cd.Y[:Cg.shape[1]]                    # -[C_v A, C_v b]
             C = np.negative(CY[:, :nu])
             up = cg + CY[:, nu]
