@@ -36,6 +36,22 @@ def test_paper_equations(p):
     assert a[1] * Fx - a[0] * Fz == pytest.approx(tau + u)
 
 
+def test_flywheel_torque_bound(p):
+    """``flywheel_torque`` sets the plan's flywheel torque bound (default: the flywheel's 195 N·m);
+    the planner caches one robot per value and refuses an invalid one."""
+    from fslip_planner import plan as PL
+    assert p.tau_max == 195.0
+    assert F.params_for("I", flywheel_torque=260).tau_max == 260.0
+    assert F.params_for("I", flywheel_torque=0).tau_max == 195.0
+    assert PL._Robot.get("I", flywheel_torque=260).params.tau_max == 260.0
+    assert PL._Robot.get("I").params.tau_max == 195.0
+    for bad in (-1.0, math.nan):
+        with pytest.raises(ValueError, match="flywheel torque limit"):
+            F.params_for("I", flywheel_torque=bad)
+        with pytest.raises(ValueError, match="flywheel torque limit"):
+            PL.FlipSession("backflip", flywheel_torque=bad)
+
+
 def test_static_state_is_equilibrium(p):
     X, U = F.static_state(p, 0.86)
     assert float(F.leg_length(X, U, p)) == pytest.approx(0.86, abs=1e-9)

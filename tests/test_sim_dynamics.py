@@ -70,6 +70,27 @@ def test_torques_are_clipped(sim):
     assert np.allclose(sim.data.qfrc_actuator[sim._motor_dof], sim.limits.torque_limit)
 
 
+def test_flywheel_torque_knob_clips_the_flywheel_command(sim):
+    """``flywheel_torque`` replaces the flywheel motor's 195 N·m limit: a ±300 N·m command acts as
+    ±260 N·m (±195 by default), and ``sim.flywheel`` and the actuator range follow it."""
+    big = Simulator("I", "flat", flywheel_torque=260.0)
+    assert big.flywheel.max_torque == 260.0 and sim.flywheel.max_torque == 195.0
+    u = np.zeros(11)
+    for s, lim in ((big, 260.0), (sim, 195.0)):
+        assert tuple(s.model.actuator_ctrlrange[s._act_ids[-1]]) == (-lim, lim)
+        s.reset()
+        for sign in (1.0, -1.0):
+            u[-1] = 300.0 * sign
+            s.step(u)
+            assert s.last_command[-1] == sign * lim
+            assert s.data.qfrc_actuator[s._motor_dof[-1]] == pytest.approx(sign * lim)
+            assert np.allclose(s.last_command[:10], 0.0)
+    assert Simulator("I", "flat", flywheel_torque=0.0).flywheel.max_torque == 195.0   # 0: its own
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="flywheel torque limit"):
+            Simulator("I", "flat", flywheel_torque=bad)
+
+
 def test_standing_forces_and_accessors(sim):
     sim.reset()
     for _ in range(200):

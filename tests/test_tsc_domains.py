@@ -131,3 +131,28 @@ def test_push_under_way_is_not_abandoned():
     assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising) == Domain.JUMPING
     assert state_after(cfg.push_grace + 0.01, 2.0 * cfg.push_rising) == Domain.STANDING
     assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising, (0, 1.5 + 2.0 * cfg.grace)) == Domain.FLIGHT
+
+
+def test_controller_overrides_from_json():
+    """``config_overrides`` (tsc_node's ``controller`` parameter, ``flip run --controller``): gains are
+    merged into the defaults, domains given by name or number, and anything else is refused with
+    the reason, before a controller is built."""
+    from tsc_controller.domains import DEFAULT_GAINS, JUMPING_GAINS, config_overrides
+    o = config_overrides('{"cop_margin_domains": {"JUMPING": 0.2, "3": 0.1}, "jumping_gains": {"com": [100, 100, 20]},'
+                         ' "landing_moment": 8, "per_foot_contact": false}')
+    assert o["cop_margin_domains"] == {int(Domain.JUMPING): 0.2, int(Domain.LANDING): 0.1}
+    assert o["jumping_gains"]["com"] == (100.0, 100.0, 20.0)
+    assert o["jumping_gains"]["H_pitch"] == JUMPING_GAINS["H_pitch"]
+    assert o["landing_moment"] == 8.0 and o["per_foot_contact"] is False
+    ctl = Controller(export_mjcf(), **o)
+    assert ctl.cfg.cop_margin_domains[int(Domain.JUMPING)] == 0.2 and ctl.cfg.gains == DEFAULT_GAINS
+    assert config_overrides("") == {}
+    for bad, why in [('{"no_such": 1}', "unknown controller setting"), ("[1, 2]", "JSON object"),
+                     ("{oops", "not JSON"), ('{"gains": {"com": [1, 2]}}', "three numbers"),
+                     ('{"gains": {"nose": [1, 2, 3]}}', "unknown output"),
+                     ('{"cop_margin_domains": {"AIR": 0.1}}', "not a domain"),
+                     ('{"cop_margin_domains": {"1": 0.6}}', "below 0.5"),
+                     ('{"motor_speed_scale": 3}', "robot parameter"), ('{"landing_moment": "x"}', "number"),
+                     ('{"per_foot_contact": 1}', "true or false")]:
+        with pytest.raises(ValueError, match=why):
+            config_overrides(bad)

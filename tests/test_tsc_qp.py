@@ -107,6 +107,26 @@ def test_torque_limits_match_simulator_envelope():
         assert np.allclose(lb, lb2) and np.allclose(ub, ub2)
 
 
+def test_torque_limits_flywheel_torque():
+    """``flywheel_torque`` moves the flywheel's bound (last entry) to ±260 N·m at any speed, as in the
+    simulator; the leg motors' envelope is unchanged; ``Controller(flywheel_torque=...)`` uses it."""
+    from cassie_flip_sim.motor_limits import MotorLimits
+    from tsc_controller.limits import TorqueLimits
+    tl, tl0 = TorqueLimits(flywheel_torque=260), TorqueLimits()
+    lb, ub = tl.bounds(np.zeros(11))
+    lb0, ub0 = tl0.bounds(np.zeros(11))
+    assert (lb[-1], ub[-1]) == (-260.0, 260.0) and (lb0[-1], ub0[-1]) == (-195.0, 195.0)
+    assert np.array_equal(lb[:10], lb0[:10]) and np.array_equal(ub[:10], ub0[:10])
+    sim_lim = MotorLimits.from_flywheel("I", flywheel_torque=260)
+    w = np.random.default_rng(2).normal(0, 30, 11)
+    lb, ub = tl.bounds(w)
+    lb2, ub2 = sim_lim.bounds(w)
+    assert np.allclose(lb, lb2) and np.allclose(ub, ub2) and (lb[-1], ub[-1]) == (-260.0, 260.0)
+    assert Controller(export_mjcf(), flywheel_torque=260.0).limits.tau_max[-1] == 260.0
+    with pytest.raises(ValueError):
+        TorqueLimits(flywheel_torque=-1.0)
+
+
 def test_cop_margin_per_solve(controllers):
     """``cop_margin`` passed to a solve keeps each foot's centre of pressure that fraction of the foot
     length from toe and heel (each carries >= margin of the foot's load); without it the same tasks

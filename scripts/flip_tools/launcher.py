@@ -169,7 +169,8 @@ def _param_str(v) -> str:
     if isinstance(v, float):
         return repr(v)  # keeps a '.', so ROS types it as double
     if isinstance(v, str):
-        return v if v else "''"
+        # YAML single-quoted: `-p` values are YAML, and a JSON text ({...}) would parse as a mapping
+        return "'" + v.replace("'", "''") + "'"
     return str(v)
 
 

@@ -4,13 +4,15 @@
 Envelope per motor, joint side (τ_max = motor limit · gear, ω₀ = no-load rpm · 2π/60 / gear):
 motoring (τ·ω > 0) the available torque drops linearly from τ_max at ω = 0 to 0 at |ω| = ω₀;
 braking (τ·ω ≤ 0) the full τ_max is available.  The flywheel has a constant 195 N·m limit
-(paper §V) and, optionally, a maximum speed (no-load speed = that speed).
+(paper §V; ``flywheel_torque`` replaces it) and, optionally, a maximum speed (no-load speed = that speed).
 Order = contract motor order (architecture.md).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Tuple
+import math
+import numbers
+from dataclasses import dataclass, replace
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -25,13 +27,14 @@ class MotorLimits:
 
     @staticmethod
     def from_flywheel(flywheel: P.Flywheel | str | tuple | None = "I",
-                      speed_scale: float = 1.0) -> "MotorLimits":
+                      speed_scale: float = 1.0, flywheel_torque: Optional[float] = None) -> "MotorLimits":
         """The robot's motors and the flywheel's.  ``speed_scale`` multiplies the no-load speeds of
         the ten leg motors (1 = the published Cassie motors; a design study of what a flip needs
-        may raise it — the knee's 8.5 rad/s caps the lift-off speed near 1.6 m/s)."""
+        may raise it — the knee's 8.5 rad/s caps the lift-off speed near 1.6 m/s).
+        ``flywheel_torque`` (N·m) replaces the flywheel's ``max_torque`` (None or 0: its own)."""
         if not (speed_scale > 0.0):
             raise ValueError(f"motor speed scale must be > 0, got {speed_scale}")
-        fw = P.flywheel(flywheel)
+        fw = with_flywheel_torque(P.flywheel(flywheel), flywheel_torque)
         motors = list(P.CASSIE_MOTORS) + ([P.flywheel_motor(fw)] if fw is not None else [])
         w0 = np.array([m.no_load_speed for m in motors], float)
         w0[:len(P.CASSIE_MOTORS)] *= speed_scale
@@ -51,6 +54,26 @@ class MotorLimits:
         """Commanded torques saturated to the envelope."""
         lb, ub = self.bounds(motor_velocities)
         return np.minimum(np.maximum(np.asarray(u, float), lb), ub)
+
+
+def flywheel_torque_override(torque) -> Optional[float]:
+    """``torque`` checked: None for None or 0 (the flywheel's own limit), else the limit in N·m."""
+    if torque is None:
+        return None
+    if not (isinstance(torque, numbers.Real) and math.isfinite(torque) and torque >= 0):
+        raise ValueError(f"flywheel torque limit must be a finite number >= 0 N·m "
+                         f"(0 = the flywheel's own), got {torque!r}")
+    return float(torque) or None
+
+
+def with_flywheel_torque(fw: Optional[P.Flywheel], torque=None) -> Optional[P.Flywheel]:
+    """``fw`` with ``max_torque`` = ``torque`` N·m (None or 0: ``fw`` unchanged)."""
+    t = flywheel_torque_override(torque)
+    if t is None:
+        return fw
+    if fw is None:
+        raise ValueError("a flywheel torque limit was given for a robot without a flywheel")
+    return replace(fw, max_torque=t)
 
 
 DEFAULT_LIMITS = MotorLimits.from_flywheel("I")

@@ -92,8 +92,11 @@ class SimNode:
             raise ValueError(f"controller must be 'tsc' or 'none', not {self.controller!r}")
         # leg motors' no-load speeds x this (1 = published Cassie motors; a design-study knob)
         speed_scale = float(_declare(n, 'motor_speed_scale', 1.0))
+        # flywheel motor's torque limit, N·m (0 = the flywheel's own, 195; a design-study knob)
+        flywheel_torque = float(_declare(n, 'flywheel_torque', 0.0))
         fw = (inertia, mass) if inertia > 0 and mass > 0 else flywheel
-        self.sim = Simulator(flywheel=fw, scenario=scenario, motor_speed_scale=speed_scale)
+        self.sim = Simulator(flywheel=fw, scenario=scenario, motor_speed_scale=speed_scale,
+                             flywheel_torque=flywheel_torque)
         self.scenario = scenario
         self.dt = self.sim.timestep
         self.dt_ns = int(round(self.dt * 1e9))
@@ -113,7 +116,7 @@ class SimNode:
         self.executor.add_node(self.srv_node)
 
         self._prealloc_messages()
-        self.pub_desc.publish(String(data=export_mjcf(fw)))
+        self.pub_desc.publish(String(data=export_mjcf(self.sim.flywheel)))   # with its torque limit
         self.command = np.zeros(11)
         self.plan_in_force = None      # (plan_id, domain) of the newest reference seen
         self.hold_times = []
@@ -263,7 +266,8 @@ class SimNode:
                 self.executor.spin_once(timeout_sec=0.01)
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
         log.info(f'running: mode={self.mode} controller={self.controller} '
-                 f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel}')
+                 f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
+                 f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m')
         wall0 = time.monotonic()
         k = 0
         late = missing = 0

@@ -15,7 +15,7 @@ import numpy as np
 from . import model as M
 from . import robot_params as P
 from .contacts import ContactDetector, ContactEvent, FootForces
-from .motor_limits import MotorLimits
+from .motor_limits import MotorLimits, with_flywheel_torque
 
 
 class Simulator:
@@ -23,12 +23,13 @@ class Simulator:
 
     def __init__(self, flywheel: M.FlywheelSpec = "I", scenario: Union[str, M.Scenario, None] = None, *,
                  clip_torques: bool = True, detector: Optional[ContactDetector] = None,
-                 motor_speed_scale: float = 1.0):
-        self.flywheel = P.flywheel(flywheel)
+                 motor_speed_scale: float = 1.0, flywheel_torque: Optional[float] = None):
+        # flywheel_torque (N·m): the flywheel motor's limit (None or 0: the flywheel's max_torque)
+        self.flywheel = with_flywheel_torque(P.flywheel(flywheel), flywheel_torque)
         self.scenario = M.scenario(scenario)
         self.model = M.build_model(self.flywheel, self.scenario)
         self.data = mujoco.MjData(self.model)
-        self.limits = MotorLimits.from_flywheel(self.flywheel, motor_speed_scale)
+        self.limits = MotorLimits.from_flywheel(self.flywheel, motor_speed_scale, flywheel_torque)
         self.clip_torques = clip_torques
         self.detector = detector if detector is not None else ContactDetector(True)
         self.motor_names = self.limits.names

@@ -137,16 +137,19 @@ def static_state(p: FSLIPParams, L):
     return np.array([0.0, r, 0.0, 0.0, 0.0]), np.array([F, 0.0, 0.0])
 
 
-def params_for(flywheel="I", mu=0.6, knee_speed_envelope=True, motor_speed_scale=1.0) -> FSLIPParams:
+def params_for(flywheel="I", mu=0.6, knee_speed_envelope=True, motor_speed_scale=1.0,
+               flywheel_torque=None) -> FSLIPParams:
     """:class:`FSLIPParams` of the robot with a Table I flywheel: m = Cassie + flywheel mass, foot
-    length l (toe–heel contact points), flywheel torque bound, the regression, and (by default)
-    the knee torque–speed envelope (the simulator clips motor torques with it), its no-load speed
-    times ``motor_speed_scale`` as in ``cassie_flip_sim.motor_limits.MotorLimits``."""
+    length l (toe–heel contact points), flywheel torque bound (``flywheel_torque`` N·m; None or 0:
+    the flywheel's own), the regression, and (by default) the knee torque–speed envelope (the
+    simulator clips motor torques with it), its no-load speed times ``motor_speed_scale`` as in
+    ``cassie_flip_sim.motor_limits.MotorLimits``."""
     from cassie_flip_sim import robot_params as P
+    from cassie_flip_sim.motor_limits import with_flywheel_torque
 
     from . import regression
     reg = regression.load(flywheel)
-    fw = P.flywheel(flywheel)
+    fw = with_flywheel_torque(P.flywheel(flywheel), flywheel_torque)
     reg.info.setdefault("knee_torque_limit", regression.knee_torque_limit())
     w0 = regression.knee_no_load_speed() * motor_speed_scale if knee_speed_envelope else math.inf
     return FSLIPParams(m=P.CASSIE_MASS + fw.mass, reg=reg, foot_length=P.FOOT_LENGTH, mu=mu,

@@ -81,10 +81,10 @@ LANDING_LEG_EXTENSION = 0.04
 
 # ------------------------------------------------------------------------------------------ robot
 class _Robot:
-    """Per-(flywheel, motor speed scale) constants from the simulator model (cached)."""
+    """Per-(flywheel, motor speed scale, flywheel torque) constants from the simulator model (cached)."""
     _cache: Dict[tuple, "_Robot"] = {}
 
-    def __init__(self, flywheel, motor_speed_scale=1.0):
+    def __init__(self, flywheel, motor_speed_scale=1.0, flywheel_torque=None):
         from cassie_flip_sim import robot_params as P
         from cassie_flip_sim.simulator import Simulator
         sim = Simulator(flywheel)
@@ -98,7 +98,8 @@ class _Robot:
             b = d.xanchor[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_hip_pitch")]
             Ls.append(np.linalg.norm(a - b))
         self.L0 = float(np.mean(Ls))
-        self.params = F.params_for(flywheel, motor_speed_scale=motor_speed_scale)
+        self.params = F.params_for(flywheel, motor_speed_scale=motor_speed_scale,
+                                   flywheel_torque=flywheel_torque)
         fw = P.flywheel(flywheel)
         self.I_fw = fw.inertia_pitch
         self.fw_max_speed = (fw.max_speed_rpm * 2 * math.pi / 60) if fw.max_speed_rpm else math.inf
@@ -112,16 +113,16 @@ class _Robot:
         raise KeyError("no robot built with these FSLIP parameters")
 
     @classmethod
-    def get(cls, flywheel, motor_speed_scale=1.0):
-        key = (flywheel, float(motor_speed_scale))
+    def get(cls, flywheel, motor_speed_scale=1.0, flywheel_torque=None):
+        key = (flywheel, float(motor_speed_scale), _check_torque(flywheel_torque))
         if key not in cls._cache:
-            cls._cache[key] = cls(flywheel, motor_speed_scale)
+            cls._cache[key] = cls(flywheel, motor_speed_scale, key[2])
         return cls._cache[key]
 
 
-def default_apex(flywheel="I", motor_speed_scale=1.0):
+def default_apex(flywheel="I", motor_speed_scale=1.0, flywheel_torque=None):
     """Default apex (m): the reachable maximum minus :data:`DEFAULT_APEX_MARGIN` (I: 1.05 m)."""
-    p = _Robot.get(flywheel, motor_speed_scale).params
+    p = _Robot.get(flywheel, motor_speed_scale, flywheel_torque).params
     return round(max_vertical_jump(p)[0] - DEFAULT_APEX_MARGIN, 2)
 
 
@@ -251,23 +252,31 @@ def _figures(sol: Jm.Solution, robot: _Robot):
 
 
 def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-              motor_speed_scale=1.0) -> PlanResult:
+              motor_speed_scale=1.0, flywheel_torque=None) -> PlanResult:
     """Jumping plan alone (no ROS).  ``apex_height`` None or 0 → :func:`default_apex`;
-    ``motor_speed_scale`` multiplies the leg motors' no-load speeds (as in the simulator)."""
+    ``motor_speed_scale`` multiplies the leg motors' no-load speeds and ``flywheel_torque`` (N·m;
+    None or 0: the flywheel's own) is the flywheel motor's limit (as in the simulator)."""
     apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height, flywheel)
     _check_scale(motor_speed_scale)
-    robot = _Robot.get(flywheel, motor_speed_scale)
-    apex = default_apex(flywheel, motor_speed_scale) if apex is None else apex
+    _check_torque(flywheel_torque)
+    robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
+    apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
     sol = _solve(kind, apex, dist, plat, robot)
     fig, lo = _figures(sol, robot)
     req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel,
-               motor_speed_scale=float(motor_speed_scale))
+               motor_speed_scale=float(motor_speed_scale), flywheel_torque=float(robot.params.tau_max))
     return PlanResult(kind, req, sol, fig, lo)
 
 
 def _check_scale(scale):
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
         raise ValueError(f"motor_speed_scale must be a finite number > 0, got {scale!r}")
+
+
+def _check_torque(torque):
+    """The flywheel torque limit override (None: the flywheel's own); ValueError if invalid."""
+    from cassie_flip_sim.motor_limits import flywheel_torque_override
+    return flywheel_torque_override(torque)
 
 
 # ------------------------------------------------------------------------------------------ session
@@ -278,14 +287,15 @@ class FlipSession:
     GRACE = 0.5   # s after the planned end of a phase before the flip counts as abandoned
 
     def __init__(self, kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-                 motor_speed_scale=1.0):
+                 motor_speed_scale=1.0, flywheel_torque=None):
         apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height,
                                            flywheel)
         _check_scale(motor_speed_scale)
         self.kind, self.flywheel = kind, flywheel
         self.motor_speed_scale = float(motor_speed_scale)
-        self.robot = _Robot.get(flywheel, motor_speed_scale)
-        self.apex = default_apex(flywheel, motor_speed_scale) if apex is None else apex
+        self.flywheel_torque = _check_torque(flywheel_torque)
+        self.robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
+        self.apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
         self.distance, self.platform = dist, plat
         self.result: Optional[PlanResult] = None
         self.t_start = self.t_liftoff = self.t_touchdown = None

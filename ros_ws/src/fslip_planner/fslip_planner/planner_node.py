@@ -46,6 +46,8 @@ class PlannerNode:
         self.flywheel = n.declare_parameter('flywheel', 'I').value
         self.platform_height = float(n.declare_parameter('platform_height', 0.0).value)
         self.motor_speed_scale = float(n.declare_parameter('motor_speed_scale', 1.0).value)
+        # flywheel motor's torque limit, N·m (0 = the flywheel's own), as in the simulator
+        self.flywheel_torque = float(n.declare_parameter('flywheel_torque', 0.0).value)
         self.pub = n.create_publisher(FlipReference, '/fslip/reference', LATCHED_QOS)
         n.create_service(RequestFlip, '/request_flip', self._on_request)
         n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
@@ -96,7 +98,8 @@ class PlannerNode:
             session = FlipSession(kind, apex_height=req.apex_height or None,
                                   forward_distance=req.forward_distance,
                                   platform_height=req.platform_height or self.platform_height,
-                                  flywheel=self.flywheel, motor_speed_scale=self.motor_speed_scale)
+                                  flywheel=self.flywheel, motor_speed_scale=self.motor_speed_scale,
+                                  flywheel_torque=self.flywheel_torque)
             ref = session.jumping_reference()
         except (InfeasibleRequest, ValueError) as e:
             res.reason = str(e)

@@ -196,6 +196,7 @@ class ControllerConfig:
     cop_margin_domains: dict = field(default_factory=dict)
     rigid_springs: bool = True
     motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
+    flywheel_torque: float | None = None   # flywheel motor's limit, N·m (None or 0: 195), as in the simulator
     # domains in which the controller is fed zero leaf-spring rates (rigid-spring model).  JUMPING: the
     # measured rates, seen through the outputs' J v and drift, make the torques chatter at the spring
     # frequency and the feet unload early in the push (measured: lift-off 0.08-0.12 s into a 1 s
@@ -258,6 +259,78 @@ class ControllerConfig:
     torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
 
 
+#: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
+#: own parameters (motor_speed_scale, flywheel_torque), the same in simulator, planner and controller
+ROBOT_FIELDS = ("motor_speed_scale", "flywheel_torque")
+_DOMAIN_KEYED = ("cop_margin_domains", "torque_smoothing")
+
+
+def config_overrides(text: str) -> dict:
+    """ControllerConfig overrides from a JSON object (the ``controller`` parameter of ``tsc_node``,
+    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` entries (name ->
+    [weight, kp, kd]) are merged into the defaults; domain-keyed dicts take domain numbers or names
+    ({"JUMPING": 0.2} or {"1": 0.2}).  Raises ValueError with the reason for anything else."""
+    import json
+    try:
+        raw = json.loads(text) if text and text.strip() else {}
+    except json.JSONDecodeError as e:
+        raise ValueError(f"controller overrides are not JSON: {e}") from None
+    if not isinstance(raw, dict):
+        raise ValueError("controller overrides must be a JSON object {field: value}")
+    base = ControllerConfig()
+    fields = set(ControllerConfig.__dataclass_fields__)
+    out = {}
+    for key, val in raw.items():
+        if key in ROBOT_FIELDS:
+            raise ValueError(f"{key!r} is a robot parameter: set it for the whole robot "
+                             f"(--{key.replace('_', '-')}), not for the controller alone")
+        if key not in fields:
+            raise ValueError(f"unknown controller setting {key!r}; known: {', '.join(sorted(fields - set(ROBOT_FIELDS)))}")
+        cur = getattr(base, key)
+        if key in ("gains", "jumping_gains"):
+            if not isinstance(val, dict):
+                raise ValueError(f"{key} must be an object name -> [weight, kp, kd]")
+            merged = dict(cur)
+            for name, g in val.items():
+                if name not in DEFAULT_GAINS:
+                    raise ValueError(f"{key}: unknown output {name!r}; known: {', '.join(DEFAULT_GAINS)}")
+                if not (isinstance(g, (list, tuple)) and len(g) == 3
+                        and all(isinstance(x, (int, float)) and math.isfinite(x) and x >= 0 for x in g)):
+                    raise ValueError(f"{key}.{name} must be [weight, kp, kd], three numbers >= 0")
+                merged[name] = tuple(float(x) for x in g)
+            out[key] = merged
+        elif key in _DOMAIN_KEYED:
+            if not isinstance(val, dict):
+                raise ValueError(f"{key} must be an object domain -> number")
+            d = {}
+            for dk, dv in val.items():
+                try:
+                    dom = Domain[dk] if dk in Domain.__members__ else Domain(int(dk))
+                except (ValueError, KeyError):
+                    raise ValueError(f"{key}: {dk!r} is not a domain ({', '.join(Domain.__members__)} or 0-3)") from None
+                if not (isinstance(dv, (int, float)) and math.isfinite(dv) and dv >= 0):
+                    raise ValueError(f"{key}.{dk} must be a number >= 0")
+                d[int(dom)] = float(dv)
+            if key == "cop_margin_domains" and any(v >= 0.5 for v in d.values()):
+                raise ValueError("cop_margin_domains: a margin must be below 0.5 (of the foot length)")
+            out[key] = d
+        elif isinstance(cur, bool):
+            if not isinstance(val, bool):
+                raise ValueError(f"{key} must be true or false")
+            out[key] = val
+        elif isinstance(cur, (int, float)) or cur is None:
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                raise ValueError(f"{key} must be a finite number")
+            out[key] = float(val)
+        elif isinstance(cur, str):
+            if not isinstance(val, str):
+                raise ValueError(f"{key} must be a string")
+            out[key] = val
+        else:
+            raise ValueError(f"{key!r} cannot be set from the command line")
+    return out
+
+
 def _mk(cls, name, gains, key=None, **kw):
     w, kp, kd = gains[key or name]
     return cls(name=name, weight=w, kp=kp, kd=kd, **kw)
@@ -273,7 +346,7 @@ class Controller:
         self.cfg = cfg
         self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs)
         self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
-        self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale)
+        self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale, flywheel_torque=cfg.flywheel_torque)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
         g = cfg.gains
         self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", g)

@@ -1,7 +1,7 @@
 """Constraints of the TSC QP (paper eq. (QP)): torque–speed envelope and ground-reaction limits.
 
 * Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) from ``cassie_flip_sim.motor_limits.torque_bounds``
-  (the simulator's own envelope; the flywheel has a constant 195 N·m).
+  (the simulator's own envelope; the flywheel has a constant 195 N·m, or ``flywheel_torque``).
 * GRF: C_v F_v <= c_v, with F_v in the contact basis of :meth:`Dynamics.contact_constraints`
   (per foot: toe (f_d, f_t, f_n), heel (f_t, f_n)):  f_n >= f_min at toe and heel (unilateral and
   centre of pressure inside the foot), |f_t| <= mu f_n at each point, and the foot's along-foot
@@ -48,9 +48,9 @@ class TorqueLimits:
     ``cassie_flip_sim.motor_limits`` (same parameters, same formula, without its per-call overhead):
     motoring, the torque falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
 
-    def __init__(self, limits=None, speed_scale: float = 1.0):
+    def __init__(self, limits=None, speed_scale: float = 1.0, flywheel_torque: float | None = None):
         from cassie_flip_sim import motor_limits as ml
-        lim = limits if limits is not None else ml.MotorLimits.from_flywheel("I", speed_scale)
+        lim = limits if limits is not None else ml.MotorLimits.from_flywheel("I", speed_scale, flywheel_torque)
         self.tau_max = np.asarray(lim.torque_limit, float)
         w0 = np.asarray(lim.no_load_speed, float)
         self._inv_w0 = np.where(np.isinf(w0), 0.0, 1.0 / np.where(np.isinf(w0), 1.0, w0))

@@ -26,7 +26,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from .domains import Controller, SampledReference
+from .domains import Controller, SampledReference, config_overrides
 from .dynamics import MOTOR_NAMES
 
 DT_NS = 500_000
@@ -48,6 +48,11 @@ class TscNode:
         self.controller = None
         # leg motors' no-load speeds x this: the same robot as the simulator's (sim_node parameter)
         self.motor_speed_scale = float(self.node.declare_parameter('motor_speed_scale', 1.0).value)
+        # flywheel motor's torque limit, N·m (0 = the flywheel's own): the simulator's (sim_node parameter)
+        self.flywheel_torque = float(self.node.declare_parameter('flywheel_torque', 0.0).value)
+        # controller settings (ControllerConfig fields) as a JSON object; checked here, before any
+        # controller is built: a bad one stops the node with the reason
+        self.overrides = config_overrides(self.node.declare_parameter('controller', '').value)
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
                               motor_command_layout)
         self.js = self.odom = None          # the newest serialized /joint_states and /odom
@@ -107,8 +112,10 @@ class TscNode:
                 break
             for topic, msg in taken:
                 if topic == '/robot_description':
-                    self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale)
-                    log.info('controller built from /robot_description')
+                    self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
+                                                 flywheel_torque=self.flywheel_torque, **self.overrides)
+                    log.info('controller built from /robot_description'
+                             + (f', settings {self.overrides}' if self.overrides else ''))
                     for m in pending:
                         self._on_reference(m)
                     pending.clear()
@@ -140,7 +147,12 @@ class TscNode:
 def main(args=None):
     pin_to_lockstep_cpu()
     rclpy.init(args=args)
-    node = TscNode()
+    try:
+        node = TscNode()
+    except ValueError as e:          # a bad parameter (e.g. the controller settings): say why, stop
+        print(f"tsc_node: {e}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
     try:
         node.run()
     except KeyboardInterrupt:
