@@ -3,13 +3,11 @@ process, lockstep), judged from the recorded bag: `scripts/flip run`.
 
 * A hop (a FlipRequest with zero flip momentum) lands and stands (issue: the TSC from standing to
   flight and landing).
-* A backflip of the somersault robot (leg motors x3, apex 1.3 m): judged from /odom in the bag, the
-  pelvis turns one whole backward somersault in the air and touches down upright.  Whether it then
-  stands is not asserted here: the landing stands up in about half the runs (start times differ with
-  the request's wall timing); tests/test_offline_flip.py checks a landing deterministically.
-* A frontflip of that robot with a 260 N*m flywheel and the JUMPING settings that keep the feet flat
-  (FRONTFLIP_CONTROLLER): one whole forward somersault, upright at touch-down.  Not asserted: the
-  landing (it falls in most runs; see the README's results)."""
+* A backflip and a frontflip of the somersault robot (leg motors x3, 260 N*m flywheel, apex 1.3 m):
+  judged from /odom in the bag, the pelvis turns one whole somersault in the air, backwards resp.
+  forwards, and touches down upright.  Whether it then stands is not asserted here: the landings
+  stand up in part of the runs only (start times differ with the request's wall timing; see the
+  README's results); tests/test_offline_flip.py checks a landing of each deterministically."""
 import json
 import subprocess
 import sys
@@ -19,10 +17,8 @@ import numpy as np
 from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
 
-#: controller settings of the frontflip runs (README, results): a CoP margin and the COM weight of the
-#: landing in JUMPING (the push-off otherwise rolls onto the toes and leaves 1 m/s too fast forward)
-FRONTFLIP_CONTROLLER = ('{"cop_margin_domains": {"JUMPING": 0.2}, "jumping_gains": {"com": [100, 100, 20]}, '
-                        '"gains": {"L_leg": [100, 100, 20]}}')
+#: the somersault robot (README)
+SOMERSAULT_ROBOT = ("--motor-speed-scale", "3", "--flywheel-torque", "260", "--apex", "1.3")
 
 
 def run_flip(tmp_path, kind, *args):
@@ -54,11 +50,11 @@ def test_hop_lands_through_the_graph(tmp_path):
 def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path):
     from flip_tools.bag import load_bag
     from flip_tools.summary import pitch_unwrapped
-    r, s, out = run_flip(tmp_path, "backflip", "--motor-speed-scale", "3", "--apex", "1.3", "--settle", "3")
+    r, s, out = run_flip(tmp_path, "backflip", *SOMERSAULT_ROBOT, "--settle", "2")
     assert r.returncode in (0, 1), r.stdout + r.stderr             # 1: ran, did not land
     assert s["response"]["accepted"] is True
     lo, td = events(s, "LIFT_OFF"), events(s, "TOUCH_DOWN")
-    assert lo and td and td[0] - lo[0] > 0.45                      # the planned 0.53 s flight
+    assert lo and td and td[0] - lo[0] > 0.45                      # the planned flight, not a stumble
     od = load_bag(out / "bag", ["/odom"]).arrays["/odom"]
     pitch = np.degrees(pitch_unwrapped(od["quat"]))
     k = np.searchsorted(od["t"], td[0])
@@ -68,12 +64,11 @@ def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path
 def test_frontflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path):
     from flip_tools.bag import load_bag
     from flip_tools.summary import pitch_unwrapped
-    r, s, out = run_flip(tmp_path, "frontflip", "--motor-speed-scale", "3", "--apex", "1.3",
-                         "--flywheel-torque", "260", "--controller", FRONTFLIP_CONTROLLER, "--settle", "2")
+    r, s, out = run_flip(tmp_path, "frontflip", *SOMERSAULT_ROBOT, "--settle", "2")
     assert r.returncode in (0, 1), r.stdout + r.stderr             # 1: ran, did not land
     assert s["response"]["accepted"] is True
     run = json.loads((out / "run.json").read_text())
-    assert run["sim_params"]["flywheel_torque"] == 260.0 and run["tsc_params"]["controller"] == FRONTFLIP_CONTROLLER
+    assert run["sim_params"]["flywheel_torque"] == run["tsc_params"]["flywheel_torque"] == 260.0
     lo, td = events(s, "LIFT_OFF"), events(s, "TOUCH_DOWN")
     assert lo and td and td[0] - lo[0] > 0.45
     od = load_bag(out / "bag", ["/odom"]).arrays["/odom"]

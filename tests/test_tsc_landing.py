@@ -19,9 +19,10 @@ from tsc_controller import Controller, Domain, StateConverter
 def run_flip(sign, T, t_end=4.0):
     sim = Simulator()
     z_stand = float(sim.standing_qpos[2])
-    w0 = launch(sim, sign, T, 0.1)
     ctl = Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
+    ctl.compute(*sc.from_simulator(sim), 0.0)      # it has seen the robot standing (its standing leg length)
+    w0 = launch(sim, sign, T, 0.1)
     ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
     ctl.set_reference(flight_reference(sign, w0, T))
     H_td, fell = None, None

@@ -162,7 +162,10 @@ DEFAULT_GAINS = {
     "com": (100.0, 100.0, 20.0),
     "pelvis": (1.0, 100.0, 20.0),
     "H_flywheel": (1.0, 20.0, 0.0),
-    "L_leg": (10.0, 100.0, 20.0),
+    # leg length in flight, weight 100: with 10 the QP gave up the tuck and then folded the legs to help
+    # the saturated flywheel turn the body (measured frontflip: touch-down on 0.71 m legs at 3.3 m/s,
+    # knees on the ground 0.27 s later; with 100, on 1.06-1.12 m legs, touch-down within 0.1 rad)
+    "L_leg": (100.0, 100.0, 20.0),
     "joints": (1.0, 100.0, 20.0),
     "beta_leg": (10.0, 100.0, 20.0),
     "toe_pitch": (1.0, 100.0, 20.0),
@@ -171,10 +174,12 @@ DEFAULT_GAINS = {
 }
 
 # JUMPING overrides (name: (weight, kp, kd)): the momentum is the task of the push-off (H_pitch weight 3:
-# with 1, the GRF-shaping QP lets H_pitch chatter and the feet unload early) and the COM must be free
-# to move for it (the landing's COM weight 100 holds the COM against the horizontal forces the
-# flip's momentum comes from)
-JUMPING_GAINS = {"H_pitch": (3.0, 10.0, 0.0), "com": (10.0, 100.0, 20.0)}
+# with 1, the GRF-shaping QP lets H_pitch chatter and the feet unload early).  COM weight 100 as on the
+# ground: with 10 the COM ran ahead of the plan and the jumps left too fast forward (measured, motor
+# speed scale 3, apex 1.3 m, tests/offline_flip.py: frontflip +0.86 m/s against -0.23 planned, COM
+# 0.25 m ahead; backflip +0.70 against +0.23); with 100 and the JUMPING CoP margin (ControllerConfig)
+# -0.12 and +0.20 m/s, COM within 0.02 m of the plan.
+JUMPING_GAINS = {"H_pitch": (3.0, 10.0, 0.0), "com": (100.0, 100.0, 20.0)}
 
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
@@ -187,13 +192,12 @@ class ControllerConfig:
     mu: float = 0.6
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
-    # domain -> cop_margin there (overrides).  Measured, frontflip push-off (motor speed scale 3, apex
-    # 1.3 m, tests/offline_flip.py): without a margin the heels rose 8 cm (the flat-foot QP kept them
-    # at f_min, the real feet rolled onto the toes) and the jump left with 1.86 m/s up against 2.31
-    # planned; {JUMPING: 0.2} kept them down (3 mm) and gave 2.13 m/s.  Off by default: with it
-    # (and a JUMPING COM weight of 100) both flips follow the planned forward speed, but the
-    # backflip, tuned around the faster forward take-off, then lands with its feet ahead and falls.
-    cop_margin_domains: dict = field(default_factory=dict)
+    # domain -> cop_margin there (overrides).  JUMPING 0.2: without a margin the frontflip's heels rose
+    # 8 cm in the push-off (the flat-foot QP kept them at f_min, the real feet rolled onto the toes)
+    # and it left with 1.86 m/s up against 2.31 planned; with it the heels stayed down (3 mm), 2.13 m/s
+    # (measured offline, motor speed scale 3, apex 1.3 m).  With the JUMPING COM weight 100 but no
+    # margin the backflip lifted off 0.77 s early.
+    cop_margin_domains: dict = field(default_factory=lambda: {1: 0.2})
     rigid_springs: bool = True
     motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
     flywheel_torque: float | None = None   # flywheel motor's limit, N·m (None or 0: 195), as in the simulator
