@@ -156,3 +156,25 @@ def test_controller_overrides_from_json():
                      ('{"per_foot_contact": 1}', "true or false")]:
         with pytest.raises(ValueError, match=why):
             config_overrides(bad)
+
+
+def test_fallen_robot_is_only_damped():
+    """After a BODY_CONTACT event (a fall) every motor, the flywheel included, only damps its own
+    motion (u = -k w within the limits), whatever the domain and references say; before it, the same
+    state gets the QP's answer."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    q, v = sc.from_simulator(sim)
+    rng = np.random.default_rng(3)
+    v = v.copy()
+    v[ctl.dyn.motor_v] = rng.uniform(-3.0, 3.0, len(ctl.dyn.motor_v))
+    v[ctl.dyn.motor_v[-1]] = 300.0                       # a spinning flywheel
+    u_qp, info = ctl.compute(q, v, 0.0)
+    assert info["qp_status"] != "fallen"
+    ctl.on_contact_event(2, 0.0005)                    # flip_msgs/ContactEvent.BODY_CONTACT
+    u, info = ctl.compute(q, v, 0.001)
+    assert info["qp_status"] == "fallen" and ctl.fallen
+    w = v[ctl.dyn.motor_v]
+    lb, ub = ctl.limits.bounds(w)
+    assert np.allclose(u, np.clip(-ctl.cfg.fall_damping * w, lb, ub))
+    assert np.all(u * w <= 0.0) and u[-1] < -100.0       # braking, the flywheel hard

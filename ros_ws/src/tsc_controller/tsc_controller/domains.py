@@ -53,7 +53,7 @@ class Domain(IntEnum):
     LANDING = 3
 
 
-LIFT_OFF, TOUCH_DOWN = 0, 1
+LIFT_OFF, TOUCH_DOWN, BODY_CONTACT = 0, 1, 2
 
 
 class SampledReference:
@@ -261,6 +261,11 @@ class ControllerConfig:
     # the legs stretched 0.08 m and touched down nearly straight.  LANDING: 3 / 10 / 30 landed a backflip
     # from 0 / 5 / 3 of 6 start times.
     torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
+    # after a BODY_CONTACT (a fall) the motors only damp: u = -fall_damping * (motor velocity), within
+    # the limits; the flywheel is braked the same way.  Before, a fallen robot kept being balanced on
+    # its flywheel: measured in graph runs that fell, the flywheel reached 12 800-78 600 rpm and the
+    # pelvis spun on the ground
+    fall_damping: float = 5.0         # N*m*s/rad
 
 
 #: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
@@ -385,6 +390,7 @@ class Controller:
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
+        self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
@@ -403,6 +409,9 @@ class Controller:
         """LIFT_OFF (0) or TOUCH_DOWN (1): ``on_contact_event(kind, t)`` or
         ``on_contact_event(kind, domain_entered, t)`` (flip_msgs/ContactEvent fields)."""
         t = args[-1]
+        if int(kind) == BODY_CONTACT:
+            self.fallen = True
+            return
         self._pending_event = (int(kind), float(t))
 
     # -------------------------------------------------------------- domain logic
@@ -725,6 +734,16 @@ class Controller:
             self.pitch += (raw - self._pitch_raw + math.pi) % (2 * math.pi) - math.pi
         self._pitch_raw = raw
 
+    def _fallen_command(self, v, t0):
+        """Damping only, after a fall (see ``ControllerConfig.fall_damping``)."""
+        w = np.asarray(v, float)[self.dyn.motor_v]
+        lb, ub = self.limits.bounds(w)
+        u = np.clip(-self.cfg.fall_damping * w, lb, ub)
+        self.u_prev = u
+        self.ticks += 1
+        return u, dict(tick_time=time.perf_counter() - t0, qp_status="fallen", domain=int(self.domain),
+                       qp_time=0.0, qp_iter=0, timing={}, grf=(0.0, 0.0))
+
     # -------------------------------------------------------------- the tick
     def compute(self, q, v, t):
         """One TSC tick: returns (u (11,), info dict)."""
@@ -735,6 +754,8 @@ class Controller:
             # see ControllerConfig.spring_rate_zero_domains
             v = np.array(v, float)
             v[self.dyn.spring_v] = 0.0
+        if self.fallen:
+            return self._fallen_command(v, t0)
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
         self._update_pitch()
