@@ -238,6 +238,7 @@ def test_summary_frontflip_landed(tmp_path):
     assert s["peak_motor_torque_nm"]["right_foot"] == pytest.approx(9.0)
     assert s["planner"]["solve_time_s"] == [0.42]
     assert s["checks"]["only_feet_touch_ground"]["ok"] is True       # no BODY_CONTACT event
+    assert s["tsc_tick_us"]["n"] == s["motor_commands"] and "tsc_tick_us_note" not in s
     assert s["unverified"] == []
     json.dumps(s)  # serialisable as is
 
@@ -251,6 +252,9 @@ def test_summary_body_contact_and_unknown(tmp_path):
     assert s["outcome"] == "body_contact"
     assert s["checks"]["only_feet_touch_ground"] == {"ok": False, "contacts": [{"t": 2.0, "bodies": "left_knee"}],
                                                      "note": "BODY_CONTACT events after the first lift-off"}
+    # after a fall the controller only damps: the tick statistics are those of the commands before it
+    assert 0 < s["tsc_tick_us"]["n"] < s["motor_commands"]
+    assert s["tsc_tick_us_note"] == f"the {s['tsc_tick_us']['n']} commands before the first BODY_CONTACT"
     # no /contact_events in the bag: the summary says it cannot tell, it does not guess
     write_flip_bag(tmp_path / "noev", rotation_deg=360.0, contact_events=False)
     s = summarize_bag(tmp_path / "noev", kind="frontflip")

@@ -140,7 +140,10 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     lift_off, touch_down, body = k.get("LIFT_OFF", LIFT_OFF), k.get("TOUCH_DOWN", TOUCH_DOWN), k.get("BODY_CONTACT")
     names = {v: n for n, v in k.items() if not n.startswith("DOMAIN_")}
     body_contact = {"ok": None, "note": "unknown: no /contact_events in the bag"}
+    t_fall = np.inf                  # first BODY_CONTACT: after it the controller only damps
     if ce is not None and len(ce["event"]):
+        if body is not None and np.any(ce["event"] == body):
+            t_fall = float(ce["t"][np.argmax(ce["event"] == body)])
         ev, dom, t = ce["event"], ce["domain"], ce["t"]
         s["contact_events"] = [{"t": _f(t[i]), "event": names.get(int(ev[i]), int(ev[i])), "domain": int(dom[i]),
                                 "step": int(ce["step"][i])} | ({"bodies": ce["frame_id"][i]}
@@ -206,7 +209,11 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
         s["peak_motor_torque_nm"] = peaks
         if "flywheel" in peaks:
             s["peak_flywheel_torque_nm"] = peaks["flywheel"]
-        s["tsc_tick_us"] = _stats_us(mc["compute_time_us"])
+        # the controller's QP ticks: after a fall it only damps (a few us), which is not its tick time
+        live = mc["t"] < t_fall
+        s["tsc_tick_us"] = _stats_us(mc["compute_time_us"][live])
+        if not live.all():
+            s["tsc_tick_us_note"] = f"the {int(live.sum())} commands before the first BODY_CONTACT"
         s["motor_commands"] = int(len(mc["step"]))
     else:
         s["tsc_tick_us"] = None
