@@ -57,6 +57,21 @@ def test_flip_msgs_between_processes_and_service(ros_graph):
     # teardown (fixture): SIGINT to every process, each must exit 0, nothing left behind
 
 
+# the real tsc_node: its `controller` parameter (ControllerConfig fields as JSON) is checked when it
+# starts; a bad one stops it with exit 2 and the reason, not a traceback
+def test_tsc_node_refuses_bad_controller_settings(ros_graph):
+    import time
+    tsc = str(Path(sys.executable).parent / "tsc_node")
+    ros_graph.expected_exit["tsc"] = {2}
+    p = ros_graph.start("tsc", [tsc], params={"controller": '{"no_such": 1}'})
+    deadline = time.monotonic() + 60.0
+    while p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert p.returncode == 2
+    log = (ros_graph.log_dir / "tsc.log").read_text()
+    assert "unknown controller setting 'no_such'" in log and "Traceback" not in log
+
+
 # (d) the real planner_node: a RequestFlip with NaN, a negative apex or an unknown kind gets
 # accepted=false with a reason, and the node keeps serving (a valid request is then accepted).
 def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
