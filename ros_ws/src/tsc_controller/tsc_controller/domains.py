@@ -18,9 +18,11 @@ Switching: a JUMPING reference whose start time has come starts the flip (if it 
 enters FLIGHT, TOUCH_DOWN enters LANDING; the end of the landing reference returns to STANDING.
 Reference time: JUMPING from the message's start_time, FLIGHT / LANDING from the lift-off / touch-down
 event (the paper plans them at those events).  Missing or late references never leave the robot
-without a command: JUMPING without lift-off past its end (+ ``grace``) falls back to STANDING, FLIGHT
+without a command: JUMPING without lift-off past its end (+ ``grace``; + up to ``push_grace`` while the
+COM still rises fast) falls back to STANDING, FLIGHT
 without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
 the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs.
+A BODY_CONTACT (a fall) latches a damping-only command (``fall_damping``).
 
 Per-foot contact (LANDING, STANDING): a foot that has come off the ground (or rocked onto toe or heel)
 while its leg is unloaded loses its contact rows in the QP and gets a swing output (toe and heel back
