@@ -29,19 +29,26 @@ def _random_task(ctl, rng):
     return outs, des
 
 
+def _random_problems(ctl, seed, n=25):
+    """n random states (halved velocities) with standing outputs pushed off their values: yields
+    (trial, lb, ub, outputs, desired), the dynamics updated to that state."""
+    dyn = ctl.dyn
+    rng = np.random.default_rng(seed)
+    for trial in range(n):
+        q, v = random_state(dyn, rng, True)
+        v *= 0.5
+        dyn.update(q, v)
+        lb, ub = torque_bounds(v[dyn.motor_v])
+        yield (trial, lb, ub, *_random_task(ctl, rng))
+
+
 @pytest.mark.parametrize("solver", ["proxqp", "daqp"])
 def test_qp_respects_bounds(controllers, solver):
     ctl = controllers[solver]
     dyn = ctl.dyn
     C, c = grf_constraints(2, ctl.cfg.mu, ctl.cfg.f_min)
-    rng = np.random.default_rng(5)
     n_solved = 0
-    for trial in range(25):
-        q, v = random_state(dyn, rng, True)
-        v *= 0.5
-        dyn.update(q, v)
-        lb, ub = torque_bounds(v[dyn.motor_v])
-        outs, des = _random_task(ctl, rng)
+    for trial, lb, ub, outs, des in _random_problems(ctl, 5):
         res = ctl.tsc.solve(outs, des, True, lb, ub)
         u = res.u
         assert np.all(u >= lb - 1e-6) and np.all(u <= ub + 1e-6), (trial, u, lb, ub)
@@ -132,15 +139,8 @@ def test_cop_margin_per_solve(controllers):
     length from toe and heel (each carries >= margin of the foot's load); without it the same tasks
     put it at an end (the load all on toe or heel, up to f_min) in some of the trials."""
     ctl = controllers["daqp"]
-    dyn = ctl.dyn
-    rng = np.random.default_rng(11)
     share_free, share_margin = [], []
-    for trial in range(25):
-        q, v = random_state(dyn, rng, True)
-        v *= 0.5
-        dyn.update(q, v)
-        lb, ub = torque_bounds(v[dyn.motor_v])
-        outs, des = _random_task(ctl, rng)
+    for _, lb, ub, outs, des in _random_problems(ctl, 11):
         for margin, shares in ((None, share_free), (0.2, share_margin)):
             res = ctl.tsc.solve(outs, des, True, lb, ub, cop_margin=margin)
             if res.status != "solved":

@@ -200,8 +200,8 @@ class TSC:
         self._solvers = {}
         self.mu, self.f_min, self.cop_margin = mu, f_min, cop_margin
         self._grf = {}
-        self.C, self.c, self._lo = self._grf_rows(2, cop_margin)
-        self.C1, self.c1, self._lo1 = self._grf_rows(1, cop_margin)     # one foot in contact
+        for n_feet in (1, 2):                     # built now, not on the first tick
+            self._grf_rows(n_feet, cop_margin)
         self._tasks = {}
 
     def _grf_rows(self, n_feet, cop_margin):
