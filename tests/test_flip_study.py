@@ -26,3 +26,21 @@ def test_study_flywheel_names_the_limit_when_flip_c_is_out_of_reach(tmp_path):
     assert r.returncode == 2, r.stdout + r.stderr
     rows = json.loads((tmp_path / "study.json").read_text())["rows"]
     assert all(row["planned_rpm"] is None and "knee" in row["reason"] for row in rows)
+
+
+def test_platform_flip_lands_beyond_the_platform_unless_told_otherwise(tmp_path):
+    """Flip C as the issue words it (no --distance): the robot stands 0.05 m behind the platform's
+    edge, so a flip in place would land on the platform; the request gets a forward distance that puts
+    the whole foot (heel 0.10 m behind the foot point) past the edge with room for the shins."""
+    from cassie_flip_sim.model import Scenario
+
+    def plan(*extra):
+        out = tmp_path / ("p" + "_".join(extra))
+        r = subprocess.run([sys.executable, str(FLIP), "plan", "frontflip", "--platform", "0.5", "--apex", "1.2",
+                            "--motor-speed-scale", "3", "--out", str(out), *extra],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stdout + r.stderr
+        return json.loads((out / "plan.json").read_text())["request"]["forward_distance"]
+    edge = Scenario.platform(0.5).platform_edge_x
+    assert plan() - 0.10 > edge + 0.2
+    assert plan("--distance", "0") == 0.0
