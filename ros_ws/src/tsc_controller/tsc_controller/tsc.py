@@ -49,19 +49,25 @@ class ConstrainedDynamics:
     """The affine maps F = A u + b and qddot = Abar u + bbar of one tick (paper eq. (utoF) ff.).
 
     One pass over R = [J^T, B, -H]: Y = (J M^-1 J^T)^-1 (J M^-1 [B, -H] + [0, Jdot v]) = -[A, b] and
-    X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar]."""
+    X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar].  ``backend`` (default: the Dynamics' own) "native"
+    runs it in the compiled tick (Cholesky of J M^-1 J^T as dposv's), "python" in numpy/LAPACK."""
 
-    def __init__(self, dyn, ground: bool, feet=(True, True)):
+    def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None):
         self.ground = ground
         J, dJv = dyn.constraints(ground, feet)
         nc = J.shape[0]
-        MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
-        JMiR = J @ MiR
-        JMiR[:, -1] += dJv
-        _, self.Y, info = dposv(JMiR[:, :nc], JMiR[:, nc:], lower=0)   # J M^-1 J^T: full row rank by construction
-        if info != 0:
-            raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dposv info {info})")
-        self.X = MiR[:, nc:] - MiR[:, :nc] @ self.Y
+        if (backend or dyn.backend) == "native":
+            ok, self.Y, self.X = dyn.native.eliminate(dyn.row_set(ground, feet))
+            if not ok:
+                raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
+        else:
+            MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
+            JMiR = J @ MiR
+            JMiR[:, -1] += dJv
+            _, self.Y, info = dposv(JMiR[:, :nc], JMiR[:, nc:], lower=0)   # J M^-1 J^T: full row rank by construction
+            if info != 0:
+                raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dposv info {info})")
+            self.X = MiR[:, nc:] - MiR[:, :nc] @ self.Y
         self.J, self.dJv, self.nc, self.nu = J, dJv, nc, dyn.nu
 
     @property
