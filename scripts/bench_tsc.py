@@ -2,7 +2,7 @@
 """Benchmark of one TSC tick (dynamics + outputs + QP) in closed loop with the MuJoCo simulator,
 and a comparison of QP solvers on the QPs of that run.
 
-    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp]
+    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp] [--backend native|python]
 
 Numbers are wall time of this process on this machine.  The closed-loop rows interleave a MuJoCo
 step between ticks (cold caches); the replay rows feed the recorded states back to back to a fresh
@@ -17,6 +17,7 @@ for _k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_k, "1")
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -31,7 +32,9 @@ for p in ("tsc_controller", "cassie_flip_sim"):
 from cassie_flip_sim.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
 from tsc_controller import Controller, StateConverter  # noqa: E402
+from tsc_controller import domains as D  # noqa: E402
 from tsc_controller import tsc as T  # noqa: E402
+from tsc_controller.dynamics import BACKENDS, Dynamics  # noqa: E402
 
 
 def stats(x):
@@ -50,7 +53,10 @@ def main():
     ap.add_argument("--warmup", type=float, default=0.5)
     ap.add_argument("--solver", default="daqp", choices=sorted(T.SOLVERS))
     ap.add_argument("--replays", type=int, default=3, help="replays of the recorded states, back to back")
+    ap.add_argument("--backend", default="native", choices=BACKENDS,
+                    help="per-tick terms: compiled (tsc_controller._native) or the numpy reference")
     a = ap.parse_args()
+    D.Dynamics = functools.partial(Dynamics, backend=a.backend)    # the Controller's Dynamics
 
     sim = Simulator()
     ctl = Controller(export_mjcf(), solver=a.solver)
@@ -80,11 +86,12 @@ def main():
             status[info["qp_status"]] = status.get(info["qp_status"], 0) + 1
     T.SOLVERS[a.solver].solve = orig
 
-    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver} "
+    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver}, backend {ctl.dyn.backend} "
           f"(BLAS threads = {os.environ.get('OPENBLAS_NUM_THREADS')})")
     print(f"| {'stage':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} |")
     print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
-    row("dynamics (pinocchio, point table)", parts["dynamics"])
+    row("dynamics (pinocchio, point table)" if a.backend == "python" else "dynamics + constraint rows (native)",
+        parts["dynamics"])
     row("constraint rows J, Jdot v", parts["constraints"])
     row("elimination A_v,b_v + outputs", parts["elimination_outputs"])
     row("QP assembly + solve", parts["qp"])

@@ -139,3 +139,79 @@ def test_controller_torques_match(mjcf, monkeypatch):
         assert info_n["qp_status"] == info_p["qp_status"]
         assert np.abs(un - up).max() < 1e-6 * max(1.0, np.abs(up).max()), k
         sim.step(un)
+
+
+def _all_outputs(ctl):
+    """Every output object of a controller (each domain's)."""
+    outs = [*ctl.ground_outputs, *ctl.jumping_outputs, ctl.o_Hfw, ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe,
+            ctl.o_j_pre, ctl.o_j_post, *ctl.o_swing]
+    return outs
+
+
+def test_compiled_outputs_match_evaluate(mjcf):
+    """The compiled task rows (outputs.py's native_spec) against each output's evaluate."""
+    from tsc_controller.tsc import _Task
+    ctl = Controller(mjcf)
+    dyn = ctl.dyn
+    ctl.pitch = 0.3
+    outs = _all_outputs(ctl)
+    states = _simulated_states(dyn, n_stand=100, n_noise=100, n_flight=50)
+    rng = np.random.default_rng(11)
+    for k in range(20):
+        q = pin.integrate(dyn.model, dyn.q_ref, rng.normal(0.0, 0.3, dyn.nv))
+        states.append((q, rng.normal(0.0, 2.0, dyn.nv)))
+    dyn.update(*states[0])
+    task = _Task(outs, [o.evaluate(dyn) for o in outs])
+    task.compile(dyn)
+    assert task.native is not None and len(task.native) == task.m
+    J = task.native.buffers()["J"]
+    for q, v in states:
+        dyn.update(q, v)
+        task.native.evaluate(dyn.native, [o.value() for o in task.valued])
+        for o, (name, sl) in zip(outs, task.slices):
+            y, Jo, drift, ydot = o.evaluate(dyn)
+            _close(task.y[sl], y, f"{name} y")
+            _close(J[sl], Jo, f"{name} J")
+            _close(task.drift[sl], drift, f"{name} drift")
+            if o.degree == 2:
+                _close(task.ydot[sl], ydot, f"{name} ydot")
+
+
+def test_qp_terms_match(mjcf, monkeypatch):
+    """The QP the TSC hands the solver (H, g, GRF rows C, up, bounds), native vs numpy, in every row set."""
+    from tsc_controller import tsc as T
+    from tsc_controller.tsc import TSC, Desired
+    dn, dp = Dynamics(mjcf), Dynamics(mjcf, backend="python")
+    tn, tp = TSC(dn, cop_margin=0.1), TSC(dp, cop_margin=0.1)
+    ctl = Controller(mjcf)
+    lists = [ctl.ground_outputs, ctl.jumping_outputs + [ctl.o_swing[0]],
+             [ctl.o_Hfw, *ctl.o_Lleg, ctl.o_j_pre], [ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe, ctl.o_j_post]]
+    seen = []
+    orig = T.SOLVERS["daqp"].solve
+
+    def capture(self, *args):
+        seen.append([None if a is None else np.array(a) for a in args])
+        return orig(self, *args)
+    monkeypatch.setattr(T.SOLVERS["daqp"], "solve", capture)
+    rng = np.random.default_rng(5)
+    states = _simulated_states(dn, n_stand=60, n_noise=60, n_flight=20, every=20)
+    for q, v in states:
+        dn.update(q, v)
+        dp.update(q, v)
+        for outs in lists:
+            des = [Desired(rng.normal(0.0, 0.1, o.evaluate(dn)[0].shape), rng.normal(0.0, 0.1),
+                           None if k % 2 else rng.normal(0.0, 0.1)) for k, o in enumerate(outs)]
+            u_prev = rng.normal(0.0, 5.0, 11)
+            for ground, feet in ROW_SETS:
+                seen.clear()
+                rn = tn.solve(outs, des, ground, -np.full(11, 50.0), np.full(11, 50.0), feet, u_prev, 10.0)
+                k = len(seen)
+                rp = tp.solve(outs, des, ground, -np.full(11, 50.0), np.full(11, 50.0), feet, u_prev, 10.0)
+                assert len(seen) == 2 * k
+                for a, b in zip(seen[:k], seen[k:]):
+                    for x, y in zip(a, b):
+                        assert (x is None) == (y is None)
+                        if x is not None:
+                            _close(x, y, f"QP term, ground={ground} feet={feet}")
+                for name in rp.y:
+                    _close(rn.y[name], rp.y[name], f"error {name}")

@@ -339,7 +339,7 @@ class Dynamics:
         nr, ns = self._T.shape[0], self._spring_rows
         every = np.arange(nr + ns)
         return dict(
-            nq=m.nq, nv=m.nv, njoints=m.njoints, nframes=m.nframes, base_jid=self.base_jid,
+            nq=m.nq, nv=m.nv, njoints=m.njoints, nframes=m.nframes, base_jid=self.base_jid, mass=self.mass,
             motor_v=self.motor_v, neg_D=self._neg_D, q_spring=self.q_spring, spring_v=self.spring_v,
             spring_q=self.spring_q, spring_k=self.spring_k,
             pt_joint=np.array([p.joint_id for p in pts]),

@@ -19,20 +19,20 @@
 #include <pybind11/pybind11.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
 
+#include "terms.hpp"
+
 namespace py = pybind11;
 namespace bp = boost::python;
+using namespace tsc_native;
 
 using Model = pinocchio::Model;
 using Data = pinocchio::Data;
-using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using Vec = Eigen::VectorXd;
 using Vec3 = Eigen::Vector3d;
-using Mat3 = Eigen::Matrix3d;
-using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 using DArr = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using IArr = py::array_t<long, py::array::c_style | py::array::forcecast>;
 
@@ -73,8 +73,10 @@ namespace
   }
 } // namespace
 
+void bind_task(py::module_ & mod);
+
 /// One tick's rigid-body terms, point table, constraint rows and constrained dynamics.
-class Tick
+class Tick : public TickTerms
 {
 public:
   Tick(py::object model, py::object data, py::dict t)
@@ -84,13 +86,14 @@ public:
   , data_(from_boost<Data>(data, "Data"))
   {
     const auto & m = model_;
-    nv_ = m.nv;
-    nq_ = m.nq;
+    nv = nv_ = m.nv;
+    nq = nq_ = m.nq;
+    mass = t["mass"].cast<double>();
     if (t["nq"].cast<long>() != nq_ || t["nv"].cast<long>() != nv_
         || t["njoints"].cast<long>() != m.njoints || t["nframes"].cast<long>() != m.nframes)
       throw std::runtime_error("tsc_native: the model seen from C++ differs from Python's (ABI)");
     motor_v_ = to_idx(t["motor_v"].cast<IArr>());
-    nu_ = long(motor_v_.size());
+    nu = nu_ = long(motor_v_.size());
     neg_D_ = Eigen::Map<const Vec>(t["neg_D"].cast<DArr>().data(), nv_);
     q_spring_ = Eigen::Map<const Vec>(t["q_spring"].cast<DArr>().data(), nq_);
     spring_v_ = to_idx(t["spring_v"].cast<IArr>());
@@ -103,7 +106,7 @@ public:
 
     // points
     pt_joint_ = to_idx(t["pt_joint"].cast<IArr>());
-    n_ = long(pt_joint_.size());
+    n = n_ = long(pt_joint_.size());
     pt_local_ = to_mat(t["pt_local"].cast<DArr>(), n_, 3);
     S_ = to_mat(t["pt_support"].cast<DArr>(), nv_, n_);
     Sw_ = to_mat(t["pt_support_w"].cast<DArr>(), nv_, 2 * n_);
@@ -141,8 +144,9 @@ public:
     py::list sets = t["row_sets"];
     for (auto s : sets)
       row_sets_.push_back(to_idx(s.cast<IArr>()));
-
     // buffers
+    q.setZero(nq_);
+    v.setZero(nv_);
     Minv_.setZero(nv_, nv_);
     BH_.setZero(nv_, nu_ + 1);
     for (long i = 0; i < nu_; ++i)
@@ -169,7 +173,8 @@ public:
   {
     if (q_in.size() != nq_ || v_in.size() != nv_)
       throw std::invalid_argument("tsc_native.update: q or v of the wrong size");
-    Eigen::Map<const Vec> q(q_in.data(), nq_), v(v_in.data(), nv_);
+    q = Eigen::Map<const Vec>(q_in.data(), nq_);
+    v = Eigen::Map<const Vec>(v_in.data(), nv_);
     const Model & m = model_;
     Data & d = data_;
 
@@ -200,32 +205,34 @@ public:
   py::tuple eliminate(long sel)
   {
     const auto & rs = row_sets_.at(sel);
-    const long nc = long(rs.size()), nv = nv_, m1 = nu_ + 1;
-    J_.resize(nc, nv);
+    const long nc = long(rs.size()), m1 = nu_ + 1;
+    J_.resize(nc, nv_);
     dJv_.resize(nc);
     for (long i = 0; i < nc; ++i)
     {
-      J_.row(i) = rows_.row(rs[i]).head(nv);
-      dJv_[i] = rows_(rs[i], nv);
+      J_.row(i) = rows_.row(rs[i]).head(nv_);
+      dJv_[i] = rows_(rs[i], nv_);
     }
-    // M^-1 J^T, M^-1 B (columns of M^-1), -M^-1 H
+    // M^-1 J^T, M^-1 [B, -H] (columns of M^-1, M^-1 (-H)); M^-1 is symmetric
     MiJt_.noalias() = Minv_ * J_.transpose();
-    MiBH_.resize(nv, m1);
+    MiBH_.resize(nv_, m1);
     for (long i = 0; i < nu_; ++i)
-      MiBH_.col(i) = Minv_.col(motor_v_[i]);
+      MiBH_.col(i) = Minv_.row(motor_v_[i]).transpose();
     MiBH_.col(nu_).noalias() = Minv_ * BH_.col(nu_);
+    // J M^-1 J^T and J M^-1 [B, -H] + [0, Jdot v]
     JMiJt_.noalias() = J_ * MiJt_;
     rhs_.noalias() = J_ * MiBH_;
     rhs_.col(nu_) += dJv_;
-    Eigen::LLT<RowMat, Eigen::Upper> llt(JMiJt_);
-    py::array_t<double> Y({nc, m1}), X({nv, m1});
-    Eigen::Map<RowMat> Ym(Y.mutable_data(), nc, m1), Xm(X.mutable_data(), nv, m1);
-    if (llt.info() != Eigen::Success)
-      return py::make_tuple(false, Y, X);
-    Ym = llt.solve(rhs_);
-    Xm = MiBH_;
-    Xm.noalias() -= MiJt_ * Ym;
-    return py::make_tuple(true, Y, X);
+    llt_.compute(JMiJt_);
+    py::array_t<double> Ya({nc, m1}), Xa({nv_, m1});
+    if (llt_.info() != Eigen::Success)
+      return py::make_tuple(false, Ya, Xa);
+    Y = llt_.solve(rhs_);
+    X = MiBH_;
+    X.noalias() -= MiJt_ * Y;
+    Eigen::Map<RowMat>(Ya.mutable_data(), nc, m1) = Y;
+    Eigen::Map<RowMat>(Xa.mutable_data(), nv_, m1) = X;
+    return py::make_tuple(true, Ya, Xa);
   }
 
   /// numpy views of the tick's buffers (valid for the Tick's life, rewritten by every update)
@@ -318,20 +325,24 @@ private:
   std::vector<std::vector<long>> pt_sup_, T_nz_, row_sets_;
   Vec neg_D_, q_spring_;
   RowMat pt_local_, S_, Sw_, T_, loop_S_, spring_Jd_;
-  // per tick
-  RowMat Minv_, BH_, Ag_, P_, pdot_, omega_, pt_rows_, rows_, blk_;
-  Vec tau_p_, dAg_v_, hg_, com_;
-  RowMat3 R_base_;
+  // per tick (TickTerms' buffers under this file's names)
+  RowMat &Minv_ = Minv, &BH_ = BH, &Ag_ = Ag, &P_ = P, &pdot_ = pdot, &omega_ = omega, &pt_rows_ = pt_rows,
+         &rows_ = rows;
+  Vec &tau_p_ = tau_p, &dAg_v_ = dAg_v, &hg_ = hg, &com_ = com;
+  RowMat3 & R_base_ = R_base;
+  RowMat blk_;
   Eigen::MatrixXd Sv_, Swv_, acc_, w_;
   // elimination scratch
-  RowMat J_, MiJt_, MiBH_, JMiJt_, rhs_;
+  Eigen::MatrixXd J_, MiJt_, MiBH_, JMiJt_, rhs_;
   Vec dJv_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
 };
 
 PYBIND11_MODULE(_native, mod)
 {
   mod.doc() = "Compiled per-tick terms of the TSC (see tsc_controller.dynamics, backend='native').";
-  py::class_<Tick>(mod, "Tick")
+  bind_task(mod);
+  py::class_<Tick, TickTerms>(mod, "Tick")
     .def(py::init<py::object, py::object, py::dict>(), py::arg("model"), py::arg("data"), py::arg("tables"))
     .def("update", &Tick::update, py::arg("q"), py::arg("v"))
     .def("eliminate", &Tick::eliminate, py::arg("row_set"))
