@@ -63,6 +63,8 @@ def _compare(dn, dp, q, v):
         cp = ConstrainedDynamics(dp, ground, feet)
         # on the same terms (the elimination alone) and end to end
         cx = ConstrainedDynamics(dn, ground, feet, backend="python")
+        _close(cn.J, cp.J, f"ConstrainedDynamics.J {dom}")
+        _close(cn.dJv, cp.dJv, f"ConstrainedDynamics.dJv {dom}")
         for name in ("A", "b", "Abar", "bbar"):
             _close(getattr(cn, name), getattr(cx, name), f"{name} {dom} (same terms)")
             _close(getattr(cn, name), getattr(cp, name), f"{name} {dom}")
@@ -215,3 +217,22 @@ def test_qp_terms_match(mjcf, monkeypatch):
                             _close(x, y, f"QP term, ground={ground} feet={feet}")
                 for name in rp.y:
                     _close(rn.y[name], rp.y[name], f"error {name}")
+
+
+@pytest.mark.parametrize("scale", [1.0, 3.0])
+def test_torque_bounds_match(scale):
+    """limits.TorqueLimits.bounds (compiled) against its numpy form, bit for bit, at and beyond the
+    no-load speeds, at rest, and for non-finite speeds."""
+    from tsc_controller.limits import TorqueLimits
+    lim = TorqueLimits(speed_scale=scale, flywheel_torque=260.0)
+    rng = np.random.default_rng(2)
+    for k in range(200):
+        w = rng.normal(0.0, [5.0, 50.0, 500.0][k % 3], 11)
+        if k % 7 == 0:
+            w[rng.integers(11)] = 0.0
+        if k % 11 == 0:
+            w[rng.integers(11)] = [np.inf, -np.inf, np.nan][k % 3]
+        with np.errstate(invalid="ignore"):           # inf speed x 0 (the flywheel's 1/w0) in numpy
+            ref = lim.bounds_python(w)
+        for a, b in zip(lim.bounds(w), ref):
+            np.testing.assert_array_equal(a, b)

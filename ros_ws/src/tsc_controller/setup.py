@@ -8,10 +8,11 @@ import sys
 from glob import glob
 from pathlib import Path
 
-from pybind11.setup_helpers import Pybind11Extension, build_ext
+from pybind11.setup_helpers import ParallelCompile, Pybind11Extension, build_ext
 from setuptools import find_packages, setup
 
 package_name = "tsc_controller"
+ParallelCompile("TSC_NATIVE_BUILD_JOBS", default=2).install()   # tick.cpp (Pinocchio) beside the small files
 
 
 def cmeel_prefix() -> Path:
@@ -32,13 +33,16 @@ def native_extension():
     # alignment Eigen assumes stay those of the pinocchio wheel (built for plain x86-64), see
     # Eigen's EIGEN_MAX_ALIGN_BYTES.  TSC_NATIVE_MARCH= (empty) builds for plain x86-64.
     march = os.environ.get("TSC_NATIVE_MARCH", "native")
+    # -ffp-contract=off: no fused multiply-adds the numpy reference does not make (limits.py's bounds
+    # are then equal bit for bit)
     flags = ["-O3", "-DNDEBUG", "-DEIGEN_MAX_ALIGN_BYTES=16", "-DEIGEN_MAX_STATIC_ALIGN_BYTES=16",
-             "-Wno-deprecated-declarations"]
+             "-ffp-contract=off", "-Wno-deprecated-declarations"]
     if march:
         flags.append(f"-march={march}")
     return Pybind11Extension(
         f"{package_name}._native",
-        ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp"],
+        ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp",
+         "tsc_controller/native/limits.cpp"],
         include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3")],
         define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                        ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],

@@ -54,13 +54,14 @@ class ConstrainedDynamics:
 
     def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None):
         self.ground = ground
-        J, dJv = dyn.constraints(ground, feet)
-        nc = J.shape[0]
         if (backend or dyn.backend) == "native":
-            ok, self.Y, self.X = dyn.native.eliminate(dyn.row_set(ground, feet))
+            ok, self.Y, self.X, J, dJv = dyn.native.eliminate(dyn.row_set(ground, feet))
+            nc = J.shape[0]
             if not ok:
                 raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
         else:
+            J, dJv = dyn.constraints(ground, feet)
+            nc = J.shape[0]
             MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
             JMiR = J @ MiR
             JMiR[:, -1] += dJv
@@ -302,7 +303,8 @@ class TSC:
         t_a = time.perf_counter()
         n_feet = sum(bool(f) for f in feet) if ground else 0
         ground = ground and n_feet > 0
-        dyn.constraints(ground, feet)
+        if dyn.native is None:                # (native: the rows came with the tick's update)
+            dyn.constraints(ground, feet)
         t_b = time.perf_counter()
         cd = ConstrainedDynamics(dyn, ground, feet)
         task = self._task(outputs)

@@ -74,6 +74,7 @@ namespace
 } // namespace
 
 void bind_task(py::module_ & mod);
+void bind_limits(py::module_ & mod);
 
 /// One tick's rigid-body terms, point table, constraint rows and constrained dynamics.
 class Tick : public TickTerms
@@ -201,7 +202,8 @@ public:
   }
 
   /// Y = (J M^-1 J^T)^-1 (J M^-1 [B, -H] + [0, Jdot v]) and X = M^-1 [B, -H] - M^-1 J^T Y for the
-  /// constraint rows of row set `sel`; (ok, Y, X), ok false when J M^-1 J^T is not positive definite.
+  /// constraint rows of row set `sel`; (ok, Y, X, J, Jdot v), ok false when J M^-1 J^T is not positive
+  /// definite.  Fresh arrays (a QPResult keeps them past the tick).
   py::tuple eliminate(long sel)
   {
     const auto & rs = row_sets_.at(sel);
@@ -224,15 +226,17 @@ public:
     rhs_.noalias() = J_ * MiBH_;
     rhs_.col(nu_) += dJv_;
     llt_.compute(JMiJt_);
-    py::array_t<double> Ya({nc, m1}), Xa({nv_, m1});
+    py::array_t<double> Ya({nc, m1}), Xa({nv_, m1}), Ja({nc, nv_}), dJva(nc);
+    Eigen::Map<RowMat>(Ja.mutable_data(), nc, nv_) = J_;
+    Eigen::Map<Vec>(dJva.mutable_data(), nc) = dJv_;
     if (llt_.info() != Eigen::Success)
-      return py::make_tuple(false, Ya, Xa);
+      return py::make_tuple(false, Ya, Xa, Ja, dJva);
     Y = llt_.solve(rhs_);
     X = MiBH_;
     X.noalias() -= MiJt_ * Y;
     Eigen::Map<RowMat>(Ya.mutable_data(), nc, m1) = Y;
     Eigen::Map<RowMat>(Xa.mutable_data(), nv_, m1) = X;
-    return py::make_tuple(true, Ya, Xa);
+    return py::make_tuple(true, Ya, Xa, Ja, dJva);
   }
 
   /// numpy views of the tick's buffers (valid for the Tick's life, rewritten by every update)
@@ -342,6 +346,7 @@ PYBIND11_MODULE(_native, mod)
 {
   mod.doc() = "Compiled per-tick terms of the TSC (see tsc_controller.dynamics, backend='native').";
   bind_task(mod);
+  bind_limits(mod);
   py::class_<Tick, TickTerms>(mod, "Tick")
     .def(py::init<py::object, py::object, py::dict>(), py::arg("model"), py::arg("data"), py::arg("tables"))
     .def("update", &Tick::update, py::arg("q"), py::arg("v"))
