@@ -236,3 +236,24 @@ def test_torque_bounds_match(scale):
             ref = lim.bounds_python(w)
         for a, b in zip(lim.bounds(w), ref):
             np.testing.assert_array_equal(a, b)
+
+
+def test_output_subclass_without_compiled_form_falls_back(mjcf):
+    """An output whose evaluate is re-defined (and not its native_spec) keeps the list in Python."""
+    from tsc_controller import outputs as O
+    from tsc_controller.tsc import _Task
+
+    class Shifted(O.LegLength):
+        def evaluate(self, dyn):
+            y, J, drift, ydot = super().evaluate(dyn)
+            return y + 1.0, J, drift, ydot
+    dyn = Dynamics(mjcf)
+    dyn.update(dyn.q_ref, np.zeros(dyn.nv))
+    outs = [O.CentroidalPitchMomentum("H"), Shifted("L")]
+    task = _Task(outs, [o.evaluate(dyn) for o in outs])
+    task.compile(dyn)
+    assert task.native is None
+    outs = [O.CentroidalPitchMomentum("H"), O.LegLength("L")]
+    task = _Task(outs, [o.evaluate(dyn) for o in outs])
+    task.compile(dyn)
+    assert task.native is not None

@@ -180,30 +180,22 @@ class _Task:
     def compile(self, dyn):
         """The compiled task rows of this list (native backend, every output with a compiled form):
         ``native`` (tsc_controller._native.TaskRows), its buffers y, drift, ydot as attributes, and the
-        outputs whose value the controller gives (SagittalPitch)."""
+        outputs whose value the controller gives (SagittalPitch).  It keeps kp, kd of this list."""
         from . import _native
+
+        def owner(cls, name):
+            return next(c for c in cls.__mro__ if name in vars(c))
+        # a subclass that re-defines evaluate but not native_spec has no compiled form
+        if any(owner(type(o), "native_spec") is not owner(type(o), "evaluate") for o in self.outputs):
+            return
         specs = [o.native_spec(dyn) for o in self.outputs]
         if any(sp is None for sp in specs):
             return
         assert [sp[3] for sp in specs] == self.dims, "native_spec dims differ from evaluate's"
-        self.native = _native.TaskRows(specs, dyn.nv, dyn.nu)
+        self.native = _native.TaskRows(specs, dyn.nv, dyn.nu, self.kp, self.kd)
         b = self.native.buffers()
         self.y, self.drift, self.ydot = b["y"], b["drift"], b["ydot"]
         self.valued = [o for o, sp in zip(self.outputs, specs) if sp[0] == "pitch"]
-
-    def desired_vectors(self, desired):
-        """value, feed-forward (as in :meth:`vectors`) and d_value as the rows of one 3 x m array."""
-        z = self.zeros
-        dv = [zk if d.d_value is None else d.d_value for d, zk in zip(desired, z)]
-        parts = [d.value for d in desired]
-        parts += [v if deg1 else (zk if d.dd_value is None else d.dd_value)
-                  for v, d, zk, deg1 in zip(dv, desired, z, self.deg1)]
-        parts += dv
-        try:
-            return np.concatenate(parts).reshape(3, self.m)
-        except ValueError:
-            return np.concatenate([np.broadcast_to(np.asarray(p, float), (d,)) for p, d in zip(parts, self.dims * 3)]
-                                  ).reshape(3, self.m)
 
     def vectors(self, evaluated, desired):
         """y, value, feed-forward (d_value for degree 1, dd_value for 2), ydot, d_value, drift as the rows
@@ -280,17 +272,15 @@ class TSC:
         rhs and errors here, then H, g (and the GRF rows C, up) from the last elimination."""
         dyn = self.dyn
         task.native.evaluate(dyn.native, [o.value() for o in task.valued])
-        val, ff, dv = task.desired_vectors(desired)
-        e = task.y - val
-        rhs = task.drift - (ff - task.kp * e - task.kd * (task.ydot - dv))
+        e = task.native.errors(desired, task.deg1)         # the rhs stays in the compiled task
         errs = {name: e[sl] for name, sl in task.slices}
         t_c = time.perf_counter()
         shift = w_du * np.asarray(u_prev, float) if w_du > 0.0 and u_prev is not None else None
         if not ground:
-            H, g = task.native.qp(dyn.native, rhs, task.w, self.reg + w_du, shift, None, None)
+            H, g = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, None, None)
             return H, g, None, None, None, errs, t_c
         Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
-        H, g, C, up = task.native.qp(dyn.native, rhs, task.w, self.reg + w_du, shift, Cg, cg)
+        H, g, C, up = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, Cg, cg)
         return H, g, C, lo, up, errs, t_c
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,

@@ -55,7 +55,7 @@ namespace
 class TaskRows
 {
 public:
-  TaskRows(const py::list & specs, long nv, long nu)
+  TaskRows(const py::list & specs, long nv, long nu, const DArr & kp, const DArr & kd)
   : nv_(nv)
   , nu_(nu)
   {
@@ -69,6 +69,11 @@ public:
       specs_.push_back(s);
     }
     m_ = row;
+    if (kp.size() != m_ || kd.size() != m_)
+      throw std::invalid_argument("tsc_native: gains of the wrong size");
+    kp_ = Eigen::Map<const Vec>(kp.data(), m_);
+    kd_ = Eigen::Map<const Vec>(kd.data(), m_);
+    rhs_.setZero(m_);
     y_.setZero(m_);
     drift_.setZero(m_);
     ydot_.setZero(m_);
@@ -118,18 +123,51 @@ public:
     }
   }
 
-  /// G = J X, cA = G[:, :nu], cB = G[:, nu] + rhs; H = cA^T W cA + diag I, g = cA^T W cB - shift;
+  /// From the desired values (tsc.Desired per output, scalars broadcast over their output, missing
+  /// derivatives 0): Y = y - value, and the rhs of eq. (Ydes) kept for qp,
+  /// rhs = drift - (ff - kp Y - kd (ydot - d_value)), ff = d_value (degree 1) or dd_value (degree 2).
+  /// Returns Y.  (tsc._Task.vectors / TSC._task_rows in numpy.)
+  py::array_t<double> errors(const py::list & desired, const std::vector<bool> & deg1)
+  {
+    if (long(desired.size()) != long(specs_.size()) || deg1.size() != specs_.size())
+      throw std::invalid_argument("tsc_native.errors: one desired value per output");
+    py::array_t<double> ea(m_);
+    Eigen::Map<Vec> e(ea.mutable_data(), m_);
+    for (size_t j = 0; j < specs_.size(); ++j)
+    {
+      const Spec & s = specs_[j];
+      py::handle d = desired[j];
+      fill(d.attr("value"), s, val_);
+      fill(d.attr("d_value"), s, dv_);
+      fill(d.attr("dd_value"), s, ff_);
+      const auto sl = Eigen::seqN(s.row, s.dim);
+      if (deg1[j])
+        ff_(sl) = dv_(sl);
+    }
+    e = y_ - val_;
+    rhs_ = drift_ - (ff_ - kp_.cwiseProduct(e) - kd_.cwiseProduct(ydot_ - dv_));
+    return ea;
+  }
+
+  /// G = J X, cA = G[:, :nu], cB = G[:, nu] + rhs (rhs of the last `errors`, or given); H = cA^T W cA + diag I, g = cA^T W cB - shift;
   /// with GRF rows Cg (over the first Cg.cols() constraint forces): C = -(Cg Y)[:, :nu],
   /// up = cg + (Cg Y)[:, nu].  Returns (H, g) or (H, g, C, up).
-  py::tuple qp(const TickTerms & t, const DArr & rhs, const DArr & w, double diag, py::object shift,
+  py::tuple qp(const TickTerms & t, py::object rhs_obj, const DArr & w, double diag, py::object shift,
                py::object Cg_obj, py::object cg_obj)
   {
     const long m1 = nu_ + 1;
-    if (rhs.size() != m_ || w.size() != m_ || t.X.rows() != nv_ || t.X.cols() != m1)
+    if (w.size() != m_ || t.X.rows() != nv_ || t.X.cols() != m1)
       throw std::invalid_argument("tsc_native.qp: sizes do not match the task / the last elimination");
+    if (!rhs_obj.is_none())
+    {
+      DArr rhs = rhs_obj.cast<DArr>();
+      if (rhs.size() != m_)
+        throw std::invalid_argument("tsc_native.qp: rhs of the wrong size");
+      rhs_ = Eigen::Map<const Vec>(rhs.data(), m_);
+    }
     G_.noalias() = J_ * t.X;
-    Eigen::Map<const Vec> r(rhs.data(), m_), wv(w.data(), m_);
-    G_.col(nu_) += r;
+    Eigen::Map<const Vec> wv(w.data(), m_);
+    G_.col(nu_) += rhs_;
     WA_ = wv.asDiagonal() * G_;   // W [cA, cB]
     py::array_t<double> Ha({nu_, nu_}), ga(nu_);
     Eigen::Map<RowMat> H(Ha.mutable_data(), nu_, nu_);
@@ -173,6 +211,31 @@ public:
   long size() const { return m_; }
 
 private:
+  // one desired field of an output into rows s.row..: None -> 0, one value -> broadcast, else dim values
+  void fill(py::handle x, const Spec & s, Vec & out)
+  {
+    if (out.size() != m_)
+      out.setZero(m_);
+    auto sl = out.segment(s.row, s.dim);
+    if (x.is_none())
+    {
+      sl.setZero();
+      return;
+    }
+    if (PyFloat_Check(x.ptr()))
+    {
+      sl.setConstant(PyFloat_AS_DOUBLE(x.ptr()));
+      return;
+    }
+    DArr a = py::reinterpret_borrow<py::object>(x).cast<DArr>();
+    if (a.size() == s.dim)
+      sl = Eigen::Map<const Vec>(a.data(), s.dim);
+    else if (a.size() == 1)
+      sl.setConstant(a.data()[0]);
+    else
+      throw std::invalid_argument("tsc_native: a desired value of the wrong size");
+  }
+
   // outputs.CentroidalPitchMomentum (degree 1: no ydot)
   void centroidal(const TickTerms & t, const Spec & s)
   {
@@ -376,7 +439,7 @@ private:
 
   long nv_, nu_, m_ = 0;
   std::vector<Spec> specs_;
-  Vec y_, drift_, ydot_;
+  Vec y_, drift_, ydot_, kp_, kd_, rhs_, val_, dv_, ff_;
   RowMat J_, G_, WA_, CY_;
 };
 
@@ -384,8 +447,10 @@ void bind_task(py::module_ & mod)
 {
   py::class_<TickTerms>(mod, "TickTerms");
   py::class_<TaskRows>(mod, "TaskRows")
-    .def(py::init<const py::list &, long, long>(), py::arg("specs"), py::arg("nv"), py::arg("nu"))
+    .def(py::init<const py::list &, long, long, const DArr &, const DArr &>(), py::arg("specs"), py::arg("nv"),
+         py::arg("nu"), py::arg("kp"), py::arg("kd"))
     .def("evaluate", &TaskRows::evaluate, py::arg("tick"), py::arg("values"))
+    .def("errors", &TaskRows::errors, py::arg("desired"), py::arg("deg1"))
     .def("qp", &TaskRows::qp, py::arg("tick"), py::arg("rhs"), py::arg("w"), py::arg("diag"), py::arg("shift"),
          py::arg("Cg"), py::arg("cg"))
     .def("__len__", &TaskRows::size)
