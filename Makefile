@@ -32,7 +32,8 @@ $(VENV)/.stamp-msgs: $(VENV)/.stamp-deps $(MSG_SRCS)
 	  -C cmake.define.Python3_EXECUTABLE=$(CURDIR)/$(PY)
 	touch $@
 
-$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg)
+# tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~2 min) here too
+$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp)
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
 	touch $@
 

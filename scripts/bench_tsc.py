@@ -2,7 +2,7 @@
 """Benchmark of one TSC tick (dynamics + outputs + QP) in closed loop with the MuJoCo simulator,
 and a comparison of QP solvers on the QPs of that run.
 
-    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp]
+    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp] [--backend native|python]
 
 Numbers are wall time of this process on this machine.  The closed-loop rows interleave a MuJoCo
 step between ticks (cold caches); the replay rows feed the recorded states back to back to a fresh
@@ -17,6 +17,7 @@ for _k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_k, "1")
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -31,7 +32,9 @@ for p in ("tsc_controller", "cassie_flip_sim"):
 from cassie_flip_sim.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
 from tsc_controller import Controller, StateConverter  # noqa: E402
+from tsc_controller import domains as D  # noqa: E402
 from tsc_controller import tsc as T  # noqa: E402
+from tsc_controller.dynamics import BACKENDS, Dynamics  # noqa: E402
 
 
 def stats(x):
@@ -44,13 +47,29 @@ def row(name, x, extra=""):
     print(f"| {name:<34} | {med:9.1f} | {p99:9.1f} | {mx:9.1f} | {extra}")
 
 
+def stages(parts, tick, backend):
+    """The stage table of a run: per-stage times (info["timing"]) and the tick."""
+    print(f"| {'stage':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} |")
+    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
+    row("dynamics (pinocchio, point table)" if backend == "python" else "dynamics + constraint rows (native)",
+        parts["dynamics"])
+    row("constraint rows J, Jdot v", parts["constraints"])
+    row("elimination A_v,b_v + outputs", parts["elimination_outputs"])
+    row("QP assembly + solve", parts["qp"])
+    row("rest (domain logic, torque limits)", np.array(tick) - sum(np.array(x) for x in parts.values()))
+    row("TOTAL compute() (target 150 / 400)", tick)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated standing time (2 kHz ticks)")
     ap.add_argument("--warmup", type=float, default=0.5)
     ap.add_argument("--solver", default="daqp", choices=sorted(T.SOLVERS))
     ap.add_argument("--replays", type=int, default=3, help="replays of the recorded states, back to back")
+    ap.add_argument("--backend", default="native", choices=BACKENDS,
+                    help="per-tick terms: compiled (tsc_controller._native) or the numpy reference")
     a = ap.parse_args()
+    D.Dynamics = functools.partial(Dynamics, backend=a.backend)    # the Controller's Dynamics
 
     sim = Simulator()
     ctl = Controller(export_mjcf(), solver=a.solver)
@@ -80,16 +99,9 @@ def main():
             status[info["qp_status"]] = status.get(info["qp_status"], 0) + 1
     T.SOLVERS[a.solver].solve = orig
 
-    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver} "
+    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver}, backend {ctl.dyn.backend} "
           f"(BLAS threads = {os.environ.get('OPENBLAS_NUM_THREADS')})")
-    print(f"| {'stage':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} |")
-    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
-    row("dynamics (pinocchio, point table)", parts["dynamics"])
-    row("constraint rows J, Jdot v", parts["constraints"])
-    row("elimination A_v,b_v + outputs", parts["elimination_outputs"])
-    row("QP assembly + solve", parts["qp"])
-    row("rest (domain logic, torque limits)", np.array(tick) - sum(np.array(x) for x in parts.values()))
-    row("TOTAL compute() (target 150 / 400)", tick)
+    stages(parts, tick, a.backend)
     row("(state conversion, not in total)", conv)
     print(f"QP status: {status}")
 
@@ -98,15 +110,21 @@ def main():
     best = None
     for r in range(a.replays):
         ctl2 = Controller(export_mjcf(), solver=a.solver)
-        rep = []
+        rep, rep_tick, rep_parts = [], [], {}
         for k, (q, v, t) in enumerate(states):
             t0 = time.perf_counter()
-            ctl2.compute(q, v, t)
+            _, info = ctl2.compute(q, v, t)
             if k >= n_w:
                 rep.append(time.perf_counter() - t0)
+                rep_tick.append(info["tick_time"])
+                for kk, vv in info["timing"].items():
+                    rep_parts.setdefault(kk, []).append(vv)
         row(f"TOTAL compute(), replay {r + 1}", rep)
-        best = rep if best is None or np.median(rep) < np.median(best) else best
-    row("TOTAL compute(), best replay", best)
+        if best is None or np.median(rep) < np.median(best[0]):
+            best = rep, rep_tick, rep_parts
+    row("TOTAL compute(), best replay", best[0])
+    print("\nStages of the best replay")
+    stages(best[2], best[1], a.backend)
 
     # ---- solver comparison on the recorded QPs (11 variables, 16 GRF rows + box)
     print(f"\nQP solvers on the {len(qps)} recorded QPs (11 variables, {qps[0][2].shape[0]} inequality rows + bounds)")

@@ -1,9 +1,58 @@
-"""ament_python package tsc_controller: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv."""
-from glob import glob
+"""ament_python package tsc_controller: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv.
 
+The compiled tick (tsc_controller._native, native/tick.cpp) is a pybind11 extension on the Pinocchio,
+Eigen and Boost headers of the pip wheels (pin, cmeel-eigen, cmeel-boost: the cmeel.prefix tree)."""
+import importlib.util
+import os
+import sys
+from glob import glob
+from pathlib import Path
+
+from pybind11.setup_helpers import ParallelCompile, Pybind11Extension, build_ext
 from setuptools import find_packages, setup
 
 package_name = "tsc_controller"
+ParallelCompile("TSC_NATIVE_BUILD_JOBS", default=2).install()   # tick.cpp (Pinocchio) beside the small files
+
+
+def cmeel_prefix() -> Path:
+    """The cmeel.prefix tree that holds pinocchio's Python package (and its C++ headers, libraries)."""
+    spec = importlib.util.find_spec("pinocchio")
+    if spec is None or spec.origin is None:
+        raise RuntimeError("tsc_controller: the pin wheel (pinocchio) must be installed to build the native tick")
+    prefix = Path(spec.origin).resolve().parents[4]
+    if not (prefix / "include" / "eigen3").is_dir():
+        raise RuntimeError(f"tsc_controller: no Eigen headers in {prefix}/include (pip install cmeel-eigen)")
+    return prefix
+
+
+def native_extension():
+    prefix = cmeel_prefix()
+    lib = str(prefix / "lib")
+    # -march=native with Eigen's alignment held at 16 bytes: the Model/Data layout and the heap
+    # alignment Eigen assumes stay those of the pinocchio wheel (built for plain x86-64), see
+    # Eigen's EIGEN_MAX_ALIGN_BYTES.  TSC_NATIVE_MARCH= (empty) builds for plain x86-64.
+    march = os.environ.get("TSC_NATIVE_MARCH", "native")
+    # -ffp-contract=off: no fused multiply-adds the numpy reference does not make (limits.py's bounds
+    # are then equal bit for bit)
+    flags = ["-O3", "-DNDEBUG", "-DEIGEN_MAX_ALIGN_BYTES=16", "-DEIGEN_MAX_STATIC_ALIGN_BYTES=16",
+             "-ffp-contract=off", "-Wno-deprecated-declarations"]
+    if march:
+        flags.append(f"-march={march}")
+    return Pybind11Extension(
+        f"{package_name}._native",
+        ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp",
+         "tsc_controller/native/limits.cpp"],
+        include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3")],
+        define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
+                       ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],
+        library_dirs=[lib],
+        libraries=[f"boost_python{sys.version_info.major}{sys.version_info.minor}"],
+        runtime_library_dirs=[lib],
+        extra_compile_args=flags,
+        cxx_std=17,
+    )
+
 
 setup(
     name=package_name,
@@ -15,8 +64,10 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     package_data={package_name: ["data/*.json"]},
+    ext_modules=[native_extension()],
+    cmdclass={"build_ext": build_ext},
     install_requires=["setuptools"],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="somersault developers",
     maintainer_email="somersault@example.org",
     description="Momentum-included task space control (torque-only QP) at 2 kHz.",

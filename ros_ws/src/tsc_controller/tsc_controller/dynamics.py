@@ -37,6 +37,13 @@ foot headings and the loops' S R1^T; all rows are built at once and selected per
 S R1^T (J_a - J_b) has the drift S R1^T (a_a - a_b - omega_1 x (v_a - v_b)), so the point table takes a
 loop point's drift relative to the loop's body 1, a_p - omega_1 x pdot_p (omega - omega_1 in the formula
 above, support S_j - S_1): T times the drifts is then the rows' drift.
+
+Backends: ``backend="native"`` (default) computes all of :meth:`Dynamics.update` (the Pinocchio terms,
+the point table, the constraint rows) in one call of the compiled extension ``tsc_controller._native``
+(native/tick.cpp), on this object's own Pinocchio model and data; ``backend="python"`` is the numpy
+implementation below, the reference the native one is tested against (tests/test_tsc_native.py).  With
+the native backend the per-tick arrays (Minv, Ag, P, Jp, ..., and the views ``constraints`` returns) are
+views of the compiled tick's buffers, rewritten by the next update: copy what must outlive the tick.
 """
 from __future__ import annotations
 
@@ -58,6 +65,7 @@ MOTOR_NAMES = (
 SPRING_NAMES = ("left_shin", "left_heel_spring", "right_shin", "right_heel_spring")
 SIDES = ("left", "right")
 N_CONTACT = 10   # 5 rows per foot
+BACKENDS = ("native", "python")
 
 # p @ _SKEW -> [p]x, row-major: [[0, -p2, p1], [p2, 0, -p0], [-p1, p0, 0]]
 _SKEW = np.zeros((3, 9))
@@ -85,7 +93,10 @@ class PointFrame:
 class Dynamics:
     """Pinocchio model + per-tick terms: M^-1, H (incl. springs/damping), A_g, point table, constraint rows."""
 
-    def __init__(self, mjcf: str, motor_names=MOTOR_NAMES, free_joint: str = "pelvis", rigid_springs: bool = True):
+    def __init__(self, mjcf: str, motor_names=MOTOR_NAMES, free_joint: str = "pelvis", rigid_springs: bool = True,
+                 backend: str = "native"):
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
         self.mjcf = mjcf
         self.rigid_springs = rigid_springs
         fd, path = tempfile.mkstemp(suffix=".xml")
@@ -151,6 +162,10 @@ class Dynamics:
         self.flywheel_v = self.v_index("flywheel") if "flywheel" in self._jid else None
         self.q = None
         self.v = None
+        self.backend = backend
+        self.native = None
+        if backend == "native":
+            self._setup_native()
 
     # ------------------------------------------------------------------ setup helpers
     def q_index(self, joint: str) -> int:
@@ -319,10 +334,75 @@ class Dynamics:
         rest = np.arange(N_CONTACT, nr + ns)
         self._row_sets = {(True, False): np.r_[np.arange(5), rest], (False, True): np.r_[np.arange(5, 10), rest]}
 
+    def _native_tables(self):
+        """The index tables of the point table and the constraint rows, for the compiled tick."""
+        m = self.model
+        pts = list(self.points.values())
+        nr, ns = self._T.shape[0], self._spring_rows
+        every = np.arange(nr + ns)
+        return dict(
+            nq=m.nq, nv=m.nv, njoints=m.njoints, nframes=m.nframes, base_jid=self.base_jid, mass=self.mass,
+            motor_v=self.motor_v, neg_D=self._neg_D, q_spring=self.q_spring, spring_v=self.spring_v,
+            spring_q=self.spring_q, spring_k=self.spring_k,
+            pt_joint=np.array([p.joint_id for p in pts]),
+            pt_local=np.array([m.frames[p.frame_id].placement.translation for p in pts]),
+            pt_support=self._pt_support, pt_support_w=self._pt_support_w,
+            T=self._T, nr=nr, cs_idx=self._cs_idx, contact_idx=self._contact_idx, loop_S=self._loop_S,
+            loop_take=self._loop_take, loop_put=self._loop_put,
+            loop_joint=np.array([self._tj[i] for i in self._loop_R]),
+            spring_Jd=self._spring_Jd, n_spring_rows=ns,
+            row_sets=[every, self._row_sets[(True, False)], self._row_sets[(False, True)], every[N_CONTACT:]])
+
+    def _setup_native(self):
+        """The compiled tick on this model and data, its buffers as numpy views (rewritten by every
+        update), and a check against the numpy path on one state (a wrong build fails here, not in
+        the controller)."""
+        from . import _native
+        self.native = _native.Tick(self.model, self.data, self._native_tables())
+        b = self.native.buffers()
+        n, nv = len(self.points), self.nv
+        rows = b["pt_rows"]
+        self.BH = b["BH"]
+        self._com = b["com"]
+        self._views = (b["Minv"], b["tau_passive"], b["Ag"], b["dAg_v"], b["hg"], b["hg"][:3], b["R_base"], b["P"],
+                       rows[:, :nv].reshape(n, 3, nv), rows[:, nv].reshape(n, 3), b["pdot"], b["omega"], rows,
+                       b["rows"])
+        rng = np.random.default_rng(0)
+        q = pin.integrate(self.model, self.q_ref, 0.1 * rng.standard_normal(self.nv))
+        v = rng.standard_normal(self.nv)
+        self._update_python(q, v)
+        ref = [np.array(x) for x in (self.Minv, self.H, self.Ag, self.dAg_v, self._pt_rows, self._constraint_rows())]
+        self.update(q, v)
+        got = (self.Minv, self.H, self.Ag, self.dAg_v, self._pt_rows, self._rows)
+        for name, a, r in zip(("Minv", "H", "Ag", "dAg_v", "point table", "constraint rows"), got, ref):
+            if not np.allclose(a, r, rtol=1e-9, atol=1e-9 * max(1.0, np.abs(r).max())):
+                raise RuntimeError(f"tsc_controller._native: {name} differs from the numpy path (a build against "
+                                   "other pinocchio/Eigen headers?); rebuild, or use backend='python'")
+
+    def row_set(self, ground: bool, feet=(True, True)) -> int:
+        """Index of a domain's constraint rows among the native row sets: 0 both feet, 1 left, 2 right,
+        3 none (flight)."""
+        left, right = bool(feet[0]), bool(feet[1])
+        if not ground or not (left or right):
+            return 3
+        return 0 if left and right else (1 if left else 2)
+
     # ------------------------------------------------------------------ per tick
     def update(self, q, v):
         """All configuration/velocity-dependent terms of one tick: M^-1 (computeMinverse), H
-        (nonLinearEffects + passive torques), A_g, dA_g v, h_g (dccrba), frame placements, point table."""
+        (nonLinearEffects + passive torques), A_g, dA_g v, h_g (dccrba), frame placements, point table,
+        and (native backend) the constraint rows."""
+        if self.native is None:
+            return self._update_python(q, v)
+        self.q, self.v = q, v
+        self.native.update(q, v)
+        (self.Minv, self.tau_passive, self.Ag, self.dAg_v, self.hg, self.hg_lin, self.R_base, self.P, self.Jp,
+         self.drift, self.pdot, self.omega, self._pt_rows, self._rows) = self._views
+        self._lists = None
+        return self
+
+    def _update_python(self, q, v):
+        """:meth:`update` in numpy (the reference implementation)."""
         model, data = self.model, self.data
         self.q, self.v = q, v
         self.Minv = pin.computeMinverse(model, data, q)     # full symmetric M^-1 (pin >= 3)
@@ -385,7 +465,7 @@ class Dynamics:
     @property
     def com(self):
         """COM position (dccrba's data.com[0])."""
-        return self.data.com[0]
+        return self.data.com[0] if self.native is None else self._com
 
     @property
     def M(self):

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _native
+
 ROWS_PER_FOOT = 5
 
 
@@ -59,7 +61,12 @@ class TorqueLimits:
 
     def bounds(self, motor_velocities):
         """(u_lb, u_ub): the bound a motor pushes against (the sign of its velocity) is
-        tau_max clip(1 - |w|/w0, 0, 1), the other one tau_max."""
+        tau_max clip(1 - |w|/w0, 0, 1), the other one tau_max.  Compiled (tsc_controller._native,
+        the same operations); :meth:`bounds_python` is the numpy reference."""
+        return _native.torque_bounds(motor_velocities, self._inv_w0, self.tau_max)
+
+    def bounds_python(self, motor_velocities):
+        """:meth:`bounds` in numpy."""
         f = self._sign * np.asarray(motor_velocities, float)        # (-w, w)
         np.fmax(f, 0.0, out=f)
         f *= self._inv_w0

@@ -12,6 +12,11 @@ Y = y - y_des and the commanded derivative of eq. (Ydes): Ydot1_des = -K1p Y1, Y
 
 Point-based outputs do their 3-vector arithmetic on Python floats (the tick's point table as lists) and
 form their Jacobian as one combination of point Jacobian rows.
+
+``native_spec(dyn)`` describes an output to the compiled task rows (``tsc_controller._native.TaskRows``,
+native/task.cpp, used by the TSC with the native backend): (kind, integer parameters, float parameters,
+dim); None = no compiled form (the TSC then evaluates the list in Python).  ``evaluate`` stays the
+reference (tests/test_tsc_native.py).
 """
 from __future__ import annotations
 
@@ -37,6 +42,10 @@ class Output:
         """Return (y, J, drift, ydot_or_None) with y (dim,), J (dim, nv), drift (dim,)."""
         raise NotImplementedError
 
+    def native_spec(self, dyn: Dynamics):
+        """(kind, ints, floats, dim) of the compiled task rows, or None (module doc)."""
+        return None
+
 
 def _point_rows(dyn, names):
     """Indices of the x, y, z rows of points in the stacked point Jacobians ``dyn.Jp.reshape(-1, nv)``."""
@@ -60,6 +69,9 @@ class CentroidalPitchMomentum(Output):
 
     def evaluate(self, dyn):
         return dyn.hg[4:5], dyn.Ag[4:5], dyn.dAg_v[4:5], None
+
+    def native_spec(self, dyn):
+        return "centroidal", [4], [], 1
 
 
 class FlywheelMomentum(Output):
@@ -99,6 +111,11 @@ class FlywheelMomentum(Output):
         drift = I * (e[0] * (w1 * a2 - w2 * a1) + e[1] * (w2 * a0 - w0 * a2) + e[2] * (w0 * a1 - w1 * a0))
         return J @ dyn.v, J, np.array([drift]), None
 
+    def native_spec(self, dyn):
+        if not hasattr(self, "_I"):
+            self._setup(dyn)
+        return "flywheel", [self._base_v, self._iv], [self._I, *self._a.tolist()], 1
+
 
 class LegLength(Output):
     """L_robot(q): hip-pitch-joint-to-foot-joint distance, mean of both legs (or one ``side``)."""
@@ -134,6 +151,10 @@ class LegLength(Output):
         y, drift, ydot = _scalars(k * L, k * dd, k * Ld)
         return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
+    def native_spec(self, dyn):
+        pi = dyn.point_index
+        return "leg_length", [pi(f"{s}_{p}") for s in self.sides for p in ("foot", "hip")], [], 1
+
 
 class LegAngle(Output):
     """beta_leg(q): sagittal angle of the hip->foot vector from the downward vertical, atan2(r_x, -r_z)."""
@@ -167,6 +188,10 @@ class LegAngle(Output):
         y, drift, ydot = _scalars(k * beta, k * drift, k * bdot)
         return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
+    def native_spec(self, dyn):
+        pi = dyn.point_index
+        return "leg_angle", [pi(f"{s}_{p}") for s in self.sides for p in ("foot", "hip")], [], 1
+
 
 class ComPosition(Output):
     """x_com(q), y_com(q) (world) from the centroidal map: J = A_g[:3]/m, drift = (dA_g v)[:3]/m."""
@@ -186,6 +211,9 @@ class ComPosition(Output):
         drift *= im
         ydot *= im
         return y, dyn.Ag[s] * im, drift, ydot
+
+    def native_spec(self, dyn):
+        return "com", list(self.axes), [], self.dim
 
 
 class PelvisOrientation(Output):
@@ -230,6 +258,9 @@ class PelvisOrientation(Output):
         a = self.axes
         return ang[a], J[a], drift[a], vel[a]
 
+    def native_spec(self, dyn):
+        return "pelvis", [dyn.model.idx_vs[dyn.base_jid], *self.axes], [], self.dim
+
 
 class JointPositions(Output):
     """Joint angles (hinges) held: q_j - q_j^des; J = selection, drift = 0."""
@@ -247,6 +278,10 @@ class JointPositions(Output):
         J = np.zeros((self.dim, dyn.nv))
         J[np.arange(self.dim), iv] = 1.0
         return dyn.q[iq], J, np.zeros(self.dim), dyn.v[iv]
+
+    def native_spec(self, dyn):
+        ij = [i for j in self.joints for i in (dyn.q_index(j), dyn.v_index(j))]
+        return "joints", ij, [], self.dim
 
 
 class FootPitch(Output):
@@ -276,6 +311,10 @@ class FootPitch(Output):
         y, drift, ydot = _scalars(k * y, k * dr, k * vel)
         return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
 
+    def native_spec(self, dyn):
+        self.evaluate(dyn)            # foot lengths (set up on first use)
+        return "foot_pitch", [i for t, h, _ in self._idx for i in (t, h)], [e for _, _, e in self._idx], 1
+
 
 class FootPoints(Output):
     """Swing foot on the ground: world positions of the toe and heel ends of one foot (6 rows).
@@ -296,6 +335,9 @@ class FootPoints(Output):
         i = self._idx
         return dyn.P[i].ravel(), dyn.Jp[i].reshape(6, dyn.nv), dyn.drift[i].ravel(), dyn.pdot[i].ravel()
 
+    def native_spec(self, dyn):
+        return "foot_points", [dyn.point_index(f"{self.side}_{k}") for k in ("toe", "heel")], [], 6
+
 
 class SagittalPitch(Output):
     """Unwrapped sagittal pelvis pitch theta from ``source()`` (the controller's, continued across
@@ -310,3 +352,10 @@ class SagittalPitch(Output):
         J = np.zeros((1, dyn.nv))
         J[0, b + 3:b + 6] = dyn.data.oMi[dyn.base_jid].rotation[1]
         return np.array([self._source()]), J, np.zeros(1), J @ dyn.v
+
+    def native_spec(self, dyn):
+        return "pitch", [dyn.model.idx_vs[dyn.base_jid]], [], 1
+
+    def value(self):
+        """The pitch of this tick (``source()``), the compiled task's input."""
+        return self._source()

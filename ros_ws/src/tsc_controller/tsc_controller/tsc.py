@@ -49,19 +49,26 @@ class ConstrainedDynamics:
     """The affine maps F = A u + b and qddot = Abar u + bbar of one tick (paper eq. (utoF) ff.).
 
     One pass over R = [J^T, B, -H]: Y = (J M^-1 J^T)^-1 (J M^-1 [B, -H] + [0, Jdot v]) = -[A, b] and
-    X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar]."""
+    X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar].  ``backend`` (default: the Dynamics' own) "native"
+    runs it in the compiled tick (Cholesky of J M^-1 J^T as dposv's), "python" in numpy/LAPACK."""
 
-    def __init__(self, dyn, ground: bool, feet=(True, True)):
+    def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None):
         self.ground = ground
-        J, dJv = dyn.constraints(ground, feet)
-        nc = J.shape[0]
-        MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
-        JMiR = J @ MiR
-        JMiR[:, -1] += dJv
-        _, self.Y, info = dposv(JMiR[:, :nc], JMiR[:, nc:], lower=0)   # J M^-1 J^T: full row rank by construction
-        if info != 0:
-            raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dposv info {info})")
-        self.X = MiR[:, nc:] - MiR[:, :nc] @ self.Y
+        if (backend or dyn.backend) == "native":
+            ok, self.Y, self.X, J, dJv = dyn.native.eliminate(dyn.row_set(ground, feet))
+            nc = J.shape[0]
+            if not ok:
+                raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
+        else:
+            J, dJv = dyn.constraints(ground, feet)
+            nc = J.shape[0]
+            MiR = dyn.Minv @ np.concatenate((J.T, dyn.BH), axis=1)     # [M^-1 J^T, M^-1 B, -M^-1 H]
+            JMiR = J @ MiR
+            JMiR[:, -1] += dJv
+            _, self.Y, info = dposv(JMiR[:, :nc], JMiR[:, nc:], lower=0)   # J M^-1 J^T: full row rank by construction
+            if info != 0:
+                raise np.linalg.LinAlgError(f"J M^-1 J^T not positive definite (dposv info {info})")
+            self.X = MiR[:, nc:] - MiR[:, :nc] @ self.Y
         self.J, self.dJv, self.nc, self.nu = J, dJv, nc, dyn.nu
 
     @property
@@ -168,6 +175,27 @@ class _Task:
         self.slices = [(o.name, slice(e - d, e)) for o, d, e in zip(outputs, self.dims, ends)]
         self.deg1 = [o.degree == 1 for o in outputs]
         self.zeros = [np.zeros(d) for d in self.dims]
+        self.native = None
+
+    def compile(self, dyn):
+        """The compiled task rows of this list (native backend, every output with a compiled form):
+        ``native`` (tsc_controller._native.TaskRows), its buffers y, drift, ydot as attributes, and the
+        outputs whose value the controller gives (SagittalPitch).  It keeps kp, kd of this list."""
+        from . import _native
+
+        def owner(cls, name):
+            return next(c for c in cls.__mro__ if name in vars(c))
+        # a subclass that re-defines evaluate but not native_spec has no compiled form
+        if any(owner(type(o), "native_spec") is not owner(type(o), "evaluate") for o in self.outputs):
+            return
+        specs = [o.native_spec(dyn) for o in self.outputs]
+        if any(sp is None for sp in specs):
+            return
+        assert [sp[3] for sp in specs] == self.dims, "native_spec dims differ from evaluate's"
+        self.native = _native.TaskRows(specs, dyn.nv, dyn.nu, self.kp, self.kd)
+        b = self.native.buffers()
+        self.y, self.drift, self.ydot = b["y"], b["drift"], b["ydot"]
+        self.valued = [o for o, sp in zip(self.outputs, specs) if sp[0] == "pitch"]
 
     def vectors(self, evaluated, desired):
         """y, value, feed-forward (d_value for degree 1, dd_value for 2), ydot, d_value, drift as the rows
@@ -218,19 +246,42 @@ class TSC:
             s = self._solvers[n_in] = SOLVERS[self.solver_name](self.dyn.nu, n_in)
         return s
 
-    def _task_rows(self, outputs, desired):
-        """Stacked output Jacobian Jy, rhs = drift - commanded derivative (eq. (Ydes)), errors by name:
-        Ydot1_des = dv - K1p Y1,  Ydd2_des = ddv - K2p Y2 - K2d (ydot - dv)."""
-        ev = [o.evaluate(self.dyn) for o in outputs]
+    def _task(self, outputs):
+        """The cached :class:`_Task` of an output list (compiled with the native backend)."""
         key = tuple(map(id, outputs))
         task = self._tasks.get(key)
         if task is None:
-            task = self._tasks[key] = _Task(outputs, ev)
+            task = self._tasks[key] = _Task(outputs, [o.evaluate(self.dyn) for o in outputs])
+            if self.dyn.backend == "native":
+                task.compile(self.dyn)
+        return task
+
+    def _task_rows(self, outputs, desired):
+        """Stacked output Jacobian Jy, rhs = drift - commanded derivative (eq. (Ydes)), errors by name:
+        Ydot1_des = dv - K1p Y1,  Ydd2_des = ddv - K2p Y2 - K2d (ydot - dv)."""
+        task = self._task(outputs)
+        ev = [o.evaluate(self.dyn) for o in outputs]
         y, val, ff, ydot, dv, drift = task.vectors(ev, desired)
         e = y - val
         rhs = drift - (ff - task.kp * e - task.kd * (ydot - dv))
         errs = {name: e[sl] for name, sl in task.slices}
         return np.concatenate([x[1] for x in ev]), rhs, errs, task.w
+
+    def _native_terms(self, task, desired, ground, n_feet, w_du, u_prev, cop_margin):
+        """The QP terms of :meth:`solve` from the compiled task rows: outputs evaluated at the tick,
+        rhs and errors here, then H, g (and the GRF rows C, up) from the last elimination."""
+        dyn = self.dyn
+        task.native.evaluate(dyn.native, [o.value() for o in task.valued])
+        e = task.native.errors(desired, task.deg1)         # the rhs stays in the compiled task
+        errs = {name: e[sl] for name, sl in task.slices}
+        t_c = time.perf_counter()
+        shift = w_du * np.asarray(u_prev, float) if w_du > 0.0 and u_prev is not None else None
+        if not ground:
+            H, g = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, None, None)
+            return H, g, None, None, None, errs, t_c
+        Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
+        H, g, C, up = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, Cg, cg)
+        return H, g, C, lo, up, errs, t_c
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
               w_du: float = 0.0, cop_margin: float | None = None) -> QPResult:
@@ -242,27 +293,32 @@ class TSC:
         t_a = time.perf_counter()
         n_feet = sum(bool(f) for f in feet) if ground else 0
         ground = ground and n_feet > 0
-        dyn.constraints(ground, feet)
+        if dyn.native is None:                # (native: the rows came with the tick's update)
+            dyn.constraints(ground, feet)
         t_b = time.perf_counter()
         cd = ConstrainedDynamics(dyn, ground, feet)
-        Jy, rhs, errs, w = self._task_rows(outputs, desired)
-        G = Jy @ cd.X                                       # [cA, Jy bbar]: Ydot = cA u + Jy bbar + drift
-        cA = G[:, :nu]
-        cB = G[:, nu] + rhs                                 # cB here already minus Ydot_des
-        t_c = time.perf_counter()
-        WAt = cA.T * w                                      # A^T W
-        H = WAt @ cA
-        H.ravel()[::nu + 1] += self.reg + w_du
-        g = WAt @ cB
-        if w_du > 0.0 and u_prev is not None:
-            g -= w_du * np.asarray(u_prev, float)
-        if ground:
-            Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
-            CY = Cg @ cd.Y[:Cg.shape[1]]                    # -[C_v A, C_v b]
-            C = np.negative(CY[:, :nu])
-            up = cg + CY[:, nu]
+        task = self._task(outputs)
+        if task.native is not None:
+            H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, ground, n_feet, w_du, u_prev, cop_margin)
         else:
-            C, lo, up = None, None, None
+            Jy, rhs, errs, w = self._task_rows(outputs, desired)
+            G = Jy @ cd.X                                       # [cA, Jy bbar]: Ydot = cA u + Jy bbar + drift
+            cA = G[:, :nu]
+            cB = G[:, nu] + rhs                                 # cB here already minus Ydot_des
+            t_c = time.perf_counter()
+            WAt = cA.T * w                                      # A^T W
+            H = WAt @ cA
+            H.ravel()[::nu + 1] += self.reg + w_du
+            g = WAt @ cB
+            if w_du > 0.0 and u_prev is not None:
+                g -= w_du * np.asarray(u_prev, float)
+            if ground:
+                Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
+                CY = Cg @ cd.Y[:Cg.shape[1]]                    # -[C_v A, C_v b]
+                C = np.negative(CY[:, :nu])
+                up = cg + CY[:, nu]
+            else:
+                C, lo, up = None, None, None
         t0 = time.perf_counter()
         u, status, it = self._solver(0 if C is None else C.shape[0]).solve(H, g, C, lo, up, u_lb, u_ub)
         if status != "solved" or not math.isfinite(u @ u):

@@ -1,0 +1,42 @@
+// Compiled torque-speed envelope of the TSC (tsc_controller._native.torque_bounds): the formula of
+// limits.TorqueLimits.bounds, operation for operation, without numpy's per-call overhead.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace py = pybind11;
+using DArr = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+namespace
+{
+  // np.maximum(r, 0): NaN stays NaN
+  inline double max0(double r)
+  {
+    return r != r ? r : (r > 0.0 ? r : 0.0);
+  }
+
+  /// (u_lb, u_ub): -tau_max max(1 - fmax(-w, 0)/w0, 0), tau_max max(1 - fmax(w, 0)/w0, 0).
+  py::tuple torque_bounds(const DArr & w, const DArr & inv_w0, const DArr & tau_max)
+  {
+    const py::ssize_t n = w.size();
+    if (inv_w0.size() != n || tau_max.size() != n)
+      throw std::invalid_argument("torque_bounds: sizes differ");
+    py::array_t<double> lb(n), ub(n);
+    double *l = lb.mutable_data(), *u = ub.mutable_data();
+    const double *wp = w.data(), *iw = inv_w0.data(), *tm = tau_max.data();
+    for (py::ssize_t i = 0; i < n; ++i)
+    {
+      l[i] = max0(1.0 - std::fmax(-1.0 * wp[i], 0.0) * iw[i]) * -tm[i];
+      u[i] = max0(1.0 - std::fmax(1.0 * wp[i], 0.0) * iw[i]) * tm[i];
+    }
+    return py::make_tuple(lb, ub);
+  }
+} // namespace
+
+void bind_limits(py::module_ & mod)
+{
+  mod.def("torque_bounds", &torque_bounds, py::arg("w"), py::arg("inv_w0"), py::arg("tau_max"),
+          "(u_lb, u_ub) of limits.TorqueLimits.bounds");
+}
