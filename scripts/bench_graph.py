@@ -6,6 +6,9 @@ run must lose none).  Prints a table.  The machine's load average is printed wit
 2-core machine the factor follows the other processes.
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
+        [--flywheel-torque NM] [--apex M]
+
+(the somersault robot of the README: --motor-speed-scale 3 --flywheel-torque 260 --apex 1.3)
 """
 from __future__ import annotations
 
@@ -52,8 +55,14 @@ def main() -> int:
     ap.add_argument("--kind", default="backflip", choices=["backflip", "frontflip", "hop"])
     ap.add_argument("--runs", type=int, default=2)
     ap.add_argument("--motor-speed-scale", type=float)
+    ap.add_argument("--flywheel-torque", type=float)
+    ap.add_argument("--apex", type=float)
     a = ap.parse_args()
-    extra = ["--motor-speed-scale", str(a.motor_speed_scale)] if a.motor_speed_scale else []
+    extra = []
+    for flag, val in (("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
+                      ("--apex", a.apex)):
+        if val:
+            extra += [flag, str(val)]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(a.runs):
