@@ -379,6 +379,7 @@ class Controller:
         self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
         self.feet_contact = [True, True]   # per-foot contact state in the ground domains
         self._foot_anchor = None            # per foot: toe, heel world positions where it stands
+        self._feet_idx = None               # per foot: point-table rows of toe, heel
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
@@ -669,7 +670,9 @@ class Controller:
         for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
         slide 9 cm and the robot fall)."""
         dyn, cfg = self.dyn, self.cfg
-        P = [np.concatenate([dyn.point(f"{s}_toe")[0], dyn.point(f"{s}_heel")[0]]) for s in SIDES]
+        if self._feet_idx is None:
+            self._feet_idx = [[dyn.point_index(f"{s}_{e}") for e in ("toe", "heel")] for s in SIDES]
+        P = [dyn.P[i].reshape(6) for i in self._feet_idx]        # toe, heel (copies: fancy indexing)
         if self._foot_anchor is None:
             self._z_ground = float(min(min(p[2], p[5]) for p in P))
             self._foot_anchor = [p.copy() for p in P]
@@ -728,8 +731,8 @@ class Controller:
         """Unwrapped sagittal pitch of the pelvis: the angle of its x axis in the world x-z plane,
         atan2(-R_20, R_00), continued across ±pi from tick to tick (a somersault turns it by ±2pi;
         the ZYX Euler pitch is singular at ±pi/2)."""
-        R = self.dyn.data.oMi[self.dyn.base_jid].rotation
-        raw = math.atan2(-R[2, 0], R[0, 0])
+        R = self.dyn.R_base
+        raw = math.atan2(-float(R[2, 0]), float(R[0, 0]))
         if self._pitch_raw is None:
             self.pitch = raw
         else:
