@@ -97,6 +97,21 @@ def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
 
 
 # ---------------------------------------------------------------------------------------------
+def test_launcher_children_take_sigint_when_the_launcher_ignores_it(tmp_path):
+    """A launcher started in the background by a non-interactive shell inherits SIGINT ignored; its
+    nodes must still stop on SIGINT (the first step of the stop sequence), not need SIGTERM."""
+    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+            f"sys.path.insert(0, {str(FLIP.parent)!r}); "
+            "from flip_tools.launcher import Launcher; "
+            f"L = Launcher(0, log_dir={str(tmp_path)!r}); L.start('polite', ['sleep', '600']); "
+            "rc = L.stop('polite', sigint_timeout=5.0, sigterm_timeout=5.0); "
+            "print(rc, L.procs['polite'].stopped_by)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(-signal.SIGINT), "SIGINT"], r.stdout
+
+
+# ---------------------------------------------------------------------------------------------
 def test_launcher_escalates_and_leaves_nothing_behind(ros_graph):
     """A process that ignores SIGINT gets SIGTERM; one that ignores both gets SIGKILL; a
     grandchild in the process group is killed too."""

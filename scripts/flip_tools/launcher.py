@@ -77,6 +77,10 @@ def fastdds_profile_file() -> str:
 
 
 def _child_setup(nice: int = 0):  # runs in the child between fork and exec
+    # SIGINT as the stop sequence expects it: a launcher started in the background by a
+    # non-interactive shell inherits SIGINT ignored, and so would every node (measured: `sleep`
+    # then needed SIGTERM, and rclpy nodes saw no KeyboardInterrupt)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     try:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
     except Exception:

@@ -13,6 +13,7 @@ import sys
 
 import numpy as np
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
@@ -144,7 +145,7 @@ def main(args=None):
     node = PlannerNode()
     try:
         rclpy.spin(node.node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or SIGINT handled by rclpy alone
         pass
     finally:
         node._clock.destroy()

@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage,
                                       SubscriptionSet, fields, joint_state_layout,
                                       motor_command_layout, odometry_layout,
@@ -155,7 +156,7 @@ def main(args=None):
         return 2
     try:
         node.run()
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or SIGINT handled by rclpy alone
         pass
     finally:
         node.subs.destroy()
