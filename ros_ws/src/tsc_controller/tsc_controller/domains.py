@@ -42,10 +42,10 @@ import numpy as np
 import pinocchio as pin
 
 from . import outputs as O
-from .dynamics import SIDES, Dynamics
+from .dynamics import BACKENDS, SIDES, Dynamics
 from .limits import TorqueLimits
 from .state import StateConverter
-from .tsc import TSC, Desired
+from .tsc import SOLVERS, TSC, Desired
 
 
 class Domain(IntEnum):
@@ -190,6 +190,9 @@ MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_
 @dataclass
 class ControllerConfig:
     solver: str = "daqp"              # measured fastest (scripts/bench_tsc.py); "proxqp" also works
+    # "native": the compiled tick (tsc_controller._native); "python": the numpy reference it is tested
+    # against (tests/test_tsc_native.py), ~2x slower per tick
+    backend: str = "native"
     reg: float = 1e-4
     mu: float = 0.6
     f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
@@ -336,6 +339,9 @@ def config_overrides(text: str) -> dict:
         elif isinstance(cur, str):
             if not isinstance(val, str):
                 raise ValueError(f"{key} must be a string")
+            allowed = {"backend": BACKENDS, "solver": tuple(SOLVERS)}.get(key)
+            if allowed is not None and val not in allowed:
+                raise ValueError(f"{key} must be one of {', '.join(allowed)}, not {val!r}")
             out[key] = val
         else:
             raise ValueError(f"{key!r} cannot be set from the command line")
@@ -355,7 +361,7 @@ class Controller:
         for k, val in overrides.items():
             setattr(cfg, k, val)
         self.cfg = cfg
-        self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs)
+        self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs, backend=cfg.backend)
         self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
         self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale, flywheel_torque=cfg.flywheel_torque)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
