@@ -17,7 +17,6 @@ for _k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_k, "1")
 
 import argparse  # noqa: E402
-import functools  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -32,9 +31,8 @@ for p in ("tsc_controller", "cassie_flip_sim"):
 from cassie_flip_sim.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
 from tsc_controller import Controller, StateConverter  # noqa: E402
-from tsc_controller import domains as D  # noqa: E402
 from tsc_controller import tsc as T  # noqa: E402
-from tsc_controller.dynamics import BACKENDS, Dynamics  # noqa: E402
+from tsc_controller.dynamics import BACKENDS  # noqa: E402
 
 
 def stats(x):
@@ -69,10 +67,9 @@ def main():
     ap.add_argument("--backend", default="native", choices=BACKENDS,
                     help="per-tick terms: compiled (tsc_controller._native) or the numpy reference")
     a = ap.parse_args()
-    D.Dynamics = functools.partial(Dynamics, backend=a.backend)    # the Controller's Dynamics
 
     sim = Simulator()
-    ctl = Controller(export_mjcf(), solver=a.solver)
+    ctl = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
     sc = StateConverter(ctl.dyn)
     qps = []
     orig = T.SOLVERS[a.solver].solve
@@ -109,7 +106,7 @@ def main():
     # of its own, as tsc_node: no simulator step between ticks to evict the caches)
     best = None
     for r in range(a.replays):
-        ctl2 = Controller(export_mjcf(), solver=a.solver)
+        ctl2 = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
         rep, rep_tick, rep_parts = [], [], {}
         for k, (q, v, t) in enumerate(states):
             t0 = time.perf_counter()

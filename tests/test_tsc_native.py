@@ -1,7 +1,6 @@
 """The compiled tick (tsc_controller._native, Dynamics(backend="native"), the default) against the numpy
 reference (backend="python"): every per-tick term, the constraint rows of every domain's row set and the
 constrained dynamics, on random states and on states of simulated runs; and the controller's torques."""
-import functools
 
 import numpy as np
 import pinocchio as pin
@@ -10,7 +9,6 @@ import pytest
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, StateConverter
-from tsc_controller import domains as D
 from tsc_controller.dynamics import Dynamics
 from tsc_controller.tsc import ConstrainedDynamics
 
@@ -125,13 +123,13 @@ def test_simulated_states(pair):
         _compare(dn, dp, q, v)
 
 
-def test_controller_torques_match(mjcf, monkeypatch):
-    """The whole tick: a controller on each backend, fed the same simulated standing states, commands
-    the same torques (the QP amplifies the 1e-12 differences of the terms, hence the looser bound)."""
+def test_controller_torques_match(mjcf):
+    """The whole tick: a controller on each backend (ControllerConfig.backend), fed the same simulated
+    standing states, commands the same torques (the QP amplifies the 1e-12 differences of the terms,
+    hence the looser bound)."""
     sim = Simulator()
     cn = Controller(mjcf)
-    monkeypatch.setattr(D, "Dynamics", functools.partial(Dynamics, backend="python"))
-    cp = Controller(mjcf)
+    cp = Controller(mjcf, backend="python")
     assert cn.dyn.backend == "native" and cp.dyn.backend == "python"
     sc = StateConverter(cn.dyn)
     for k in range(400):
