@@ -385,7 +385,8 @@ class Controller:
         self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
         self.feet_contact = [True, True]   # per-foot contact state in the ground domains
         self._foot_anchor = None            # per foot: toe, heel world positions where it stands
-        self._feet_idx = None               # per foot: point-table rows of toe, heel
+        # per foot: point-table rows of toe, heel
+        self._feet_idx = [[self.dyn.point_index(f"{s}_{e}") for e in ("toe", "heel")] for s in SIDES]
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
@@ -676,8 +677,6 @@ class Controller:
         for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
         slide 9 cm and the robot fall)."""
         dyn, cfg = self.dyn, self.cfg
-        if self._feet_idx is None:
-            self._feet_idx = [[dyn.point_index(f"{s}_{e}") for e in ("toe", "heel")] for s in SIDES]
         P = [dyn.P[i].reshape(6) for i in self._feet_idx]        # toe, heel (copies: fancy indexing)
         if self._foot_anchor is None:
             self._z_ground = float(min(min(p[2], p[5]) for p in P))

@@ -267,19 +267,20 @@ class TSC:
         errs = {name: e[sl] for name, sl in task.slices}
         return np.concatenate([x[1] for x in ev]), rhs, errs, task.w
 
-    def _native_terms(self, task, desired, ground, n_feet, w_du, u_prev, cop_margin):
+    def _native_terms(self, task, desired, grf, w_du, u_prev):
         """The QP terms of :meth:`solve` from the compiled task rows: outputs evaluated at the tick,
-        rhs and errors here, then H, g (and the GRF rows C, up) from the last elimination."""
+        rhs and errors here, then H, g (and, with ``grf`` = (C_v, c_v, lower) on the ground, the GRF
+        rows C, up) from the last elimination."""
         dyn = self.dyn
         task.native.evaluate(dyn.native, [o.value() for o in task.valued])
         e = task.native.errors(desired, task.deg1)         # the rhs stays in the compiled task
         errs = {name: e[sl] for name, sl in task.slices}
         t_c = time.perf_counter()
         shift = w_du * np.asarray(u_prev, float) if w_du > 0.0 and u_prev is not None else None
-        if not ground:
+        if grf is None:
             H, g = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, None, None)
             return H, g, None, None, None, errs, t_c
-        Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
+        Cg, cg, lo = grf
         H, g, C, up = task.native.qp(dyn.native, None, task.w, self.reg + w_du, shift, Cg, cg)
         return H, g, C, lo, up, errs, t_c
 
@@ -298,8 +299,9 @@ class TSC:
         t_b = time.perf_counter()
         cd = ConstrainedDynamics(dyn, ground, feet)
         task = self._task(outputs)
+        grf = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin) if ground else None
         if task.native is not None:
-            H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, ground, n_feet, w_du, u_prev, cop_margin)
+            H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, grf, w_du, u_prev)
         else:
             Jy, rhs, errs, w = self._task_rows(outputs, desired)
             G = Jy @ cd.X                                       # [cA, Jy bbar]: Ydot = cA u + Jy bbar + drift
@@ -312,8 +314,8 @@ class TSC:
             g = WAt @ cB
             if w_du > 0.0 and u_prev is not None:
                 g -= w_du * np.asarray(u_prev, float)
-            if ground:
-                Cg, cg, lo = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin)
+            if grf is not None:
+                Cg, cg, lo = grf
                 CY = Cg @ cd.Y[:Cg.shape[1]]                    # -[C_v A, C_v b]
                 C = np.negative(CY[:, :nu])
                 up = cg + CY[:, nu]
