@@ -112,6 +112,41 @@ def test_launcher_children_take_sigint_when_the_launcher_ignores_it(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+def test_interrupt_inside_a_destructor_still_stops_the_wait(tmp_path):
+    """A SIGINT whose handler runs inside a `__del__` has its exception swallowed by Python
+    ("Exception ignored in ..."); the wait loops must still end with Interrupted, not run on."""
+    code = f"""
+import os, signal, sys, time
+sys.path.insert(0, {str(FLIP.parent)!r})
+from flip_tools.launcher import GraphWatcher, Interrupted, interrupt_latch
+
+class SignalsOnDelete:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.01)   # the handler runs here, inside __del__
+
+w = GraphWatcher(domain_id=0)
+for wait in (lambda: w.wait_until("never", lambda: False, timeout=20),
+             lambda: w.spin_until(lambda: False, timeout=20)):
+    interrupt_latch.arm()
+    SignalsOnDelete()
+    t0 = time.monotonic()
+    try:
+        wait()
+        print("no-interrupt")
+    except Interrupted as e:
+        print(e, round(time.monotonic() - t0) < 5)
+    interrupt_latch.hold()
+    interrupt_latch.disarm()
+w.close()
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "Exception ignored" in r.stderr          # the handler's own exception was lost ...
+    assert r.stdout.split() == ["SIGINT", "True", "SIGINT", "True"], r.stdout + r.stderr   # ... yet both waits ended
+
+
+# ---------------------------------------------------------------------------------------------
 def test_launcher_escalates_and_leaves_nothing_behind(ros_graph):
     """A process that ignores SIGINT gets SIGTERM; one that ignores both gets SIGKILL; a
     grandchild in the process group is killed too."""

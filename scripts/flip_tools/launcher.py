@@ -11,6 +11,9 @@
   by the domain id so that graphs running side by side spread over the CPUs): the simulator and
   its controller pin themselves to it (cassie_flip_sim.lockstep). An environment that sets
   FLIP_LOCKSTEP_CPU (empty: no pinning) overrides it.
+- Interrupts: `interrupt_latch` turns SIGINT/SIGTERM into `Interrupted` and remembers it; every
+  wait loop here re-raises a remembered one, because a signal handler's exception is lost when it
+  fires inside a `__del__` or a weakref callback (Python only prints "Exception ignored in ...").
 - Every process gets FASTDDS_PROFILE as its Fast DDS default profile (FASTRTPS_DEFAULT_PROFILES_FILE,
   unless the environment names one): shared-memory queues deep enough that a best-effort reader
   stalled for seconds (the recorder on a loaded machine) loses nothing of a 2 kHz lockstep (the
@@ -90,6 +93,55 @@ def _child_setup(nice: int = 0):  # runs in the child between fork and exec
             os.nice(nice)
         except OSError:
             pass
+
+
+class Interrupted(Exception):
+    """SIGINT or SIGTERM arrived while a graph was running."""
+
+
+class InterruptLatch:
+    """Signal handler that raises `Interrupted` and also latches the signal's name.
+
+    A handler runs between two bytecodes of whatever the main thread is doing; if that is a
+    `__del__` (rclpy's Future, a destroyed handle), Python swallows the exception and the run
+    would go on. `check()` re-raises a latched interrupt: every wait loop calls it."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.signal_name: str | None = None
+        self._old: dict = {}
+
+    def handler(self, signum, frame):  # noqa: ARG002 - signal handler signature
+        self.signal_name = signal.Signals(signum).name
+        raise Interrupted(self.signal_name)
+
+    def check(self) -> None:
+        if self.signal_name is not None:
+            raise Interrupted(self.signal_name)
+
+    def arm(self) -> None:
+        """Install the handler for SIGINT and SIGTERM (the previous handlers are kept)."""
+        self.signal_name = None
+        self._old = {s: signal.signal(s, self.handler) for s in self.SIGNALS}
+
+    def hold(self) -> None:
+        """Ignore further signals and forget the latched one: the clean-up after an interrupt
+        (stopping nodes, draining the recorder) waits in the same loops and must not re-raise."""
+        for s in self.SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        self.signal_name = None
+
+    def disarm(self) -> None:
+        """Put the handlers from before `arm()` back."""
+        for s, h in self._old.items():
+            signal.signal(s, h)
+        self._old = {}
+        self.signal_name = None
+
+
+#: the process's one latch (signal handlers are per process)
+interrupt_latch = InterruptLatch()
 
 
 class ProcessDied(RuntimeError):
@@ -351,7 +403,9 @@ class GraphWatcher:
 
     def spin_once(self, timeout: float = 0.05) -> None:
         """Run this node's callbacks (subscriptions, service responses) for up to `timeout` s."""
+        interrupt_latch.check()
         self.executor.spin_once(timeout_sec=timeout)
+        interrupt_latch.check()
 
     def spin_until(self, pred: Callable[[], bool], timeout: float, what: str = "condition") -> None:
         end = time.monotonic() + timeout
@@ -391,6 +445,7 @@ class GraphWatcher:
                    period: float = 0.05) -> None:
         end = time.monotonic() + timeout
         while True:
+            interrupt_latch.check()
             if pred():
                 return
             if launcher is not None:
