@@ -19,8 +19,9 @@ MOTORS = ["left_hip_roll", "left_hip_yaw", "left_hip_pitch", "left_knee", "left_
 
 
 def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=0.6, distance=0.4,
-               z0=1.0, dt=0.001, t_stand=1.0, t_rest=1.5):
-    """Pelvis x, z, pitch (rad, about +y) sampled every dt. Returns dict of arrays + event times."""
+               z0=1.0, dt=0.001, t_stand=1.0, t_rest=1.5, flight_yaw_deg=0.0):
+    """Pelvis x, z, pitch (rad, about +y) and yaw (rad, about world z: 0 until lift-off, ramps to
+    ``flight_yaw_deg`` at touch-down, then stays) sampled every dt. Returns dict of arrays + event times."""
     rot = math.radians(rotation_deg)
     extra = math.radians(final_tilt_deg)
     t_lo = t_stand + 0.3
@@ -42,7 +43,8 @@ def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=
     x[land] = distance
     z[land] = z0 + (final_z - z0) * w
     th[land] = rot + extra * w
-    return {"t": t, "x": x, "z": z, "th": th, "t_lo": t_lo, "t_td": t_td, "flight_time": flight_time,
+    yaw = math.radians(flight_yaw_deg) * np.clip((t - t_lo) / flight_time, 0.0, 1.0)
+    return {"t": t, "x": x, "z": z, "th": th, "yaw": yaw, "t_lo": t_lo, "t_td": t_td, "flight_time": flight_time,
             "rot": rot}
 
 
@@ -69,6 +71,8 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
     t, x, z, th = tr["t"], tr["x"], tr["z"], tr["th"]
     dt = t[1] - t[0]
     vx, vz, wy = np.gradient(x, dt), np.gradient(z, dt), np.gradient(th, dt)
+    yaw = tr["yaw"]
+    wz = np.gradient(yaw, dt)
     wall0 = 1_700_000_000_000_000_000
     rtf = 0.5  # sim runs at half real time: wall = sim / 0.5
     path = Path(path)
@@ -96,14 +100,19 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
         if body_contact_at is not None:
             events.append((body_contact_at, CE.BODY_CONTACT, 3))
         for k in range(len(t)):
-            c, s_, c2 = math.cos(th[k]), math.sin(th[k]), None
             hdr = Header(stamp=stamp(t[k]), frame_id="world")
             put(c_clock, t[k], Clock(clock=stamp(t[k])), "rosgraph_msgs/msg/Clock")
-            pose = Pose(position=P(x=x[k], y=0.0, z=z[k]), orientation=Q(x=0.0, y=math.sin(th[k] / 2), z=0.0,
-                                                                         w=math.cos(th[k] / 2)))
-            lin_b = V3(x=c * vx[k] - s_ * vz[k], y=0.0, z=s_ * vx[k] + c * vz[k])
+            # orientation R = Rz(yaw) Ry(th); twist in the pelvis frame (R^T of the world vectors)
+            cy, sy, ch, sh = math.cos(yaw[k] / 2), math.sin(yaw[k] / 2), math.cos(th[k] / 2), math.sin(th[k] / 2)
+            pose = Pose(position=P(x=x[k], y=0.0, z=z[k]), orientation=Q(x=-sy * sh, y=cy * sh, z=sy * ch, w=cy * ch))
+            c, s_, cz, sz = math.cos(th[k]), math.sin(th[k]), math.cos(yaw[k]), math.sin(yaw[k])
+            R = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]) @ np.array(
+                [[c, 0.0, s_], [0.0, 1.0, 0.0], [-s_, 0.0, c]])
+            lin_b = R.T @ np.array([vx[k], 0.0, vz[k]])
+            ang_b = R.T @ (np.array([-sz * wy[k], cz * wy[k], wz[k]]))
             od = Odom(header=hdr, child_frame_id="pelvis", pose=PwC(pose=pose, covariance=np.zeros(36)),
-                      twist=TwC(twist=Twist(linear=lin_b, angular=V3(x=0.0, y=wy[k], z=0.0)),
+                      twist=TwC(twist=Twist(linear=V3(x=lin_b[0], y=lin_b[1], z=lin_b[2]),
+                                            angular=V3(x=ang_b[0], y=ang_b[1], z=ang_b[2])),
                                 covariance=np.zeros(36)))
             put(c_odom, t[k], od, "nav_msgs/msg/Odometry")
             fw_speed = -20.0 * wy[k]

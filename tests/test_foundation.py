@@ -305,7 +305,25 @@ def test_summary_frontflip_landed(tmp_path):
     assert s["checks"]["only_feet_touch_ground"]["ok"] is True       # no BODY_CONTACT event
     assert s["tsc_tick_us"]["n"] == s["motor_commands"] and "tsc_tick_us_note" not in s
     assert s["unverified"] == []
+    # the pelvis at lift-off and touch-down: a pure pitch flip, nothing picked up off the y axis
+    assert s["liftoff_state"]["t"] == pytest.approx(s["liftoff_time_s"]) and s["liftoff_state"]["rotation_deg"] == 0.0
+    assert s["touchdown_state"]["rotation_deg"] == pytest.approx(360.0, abs=0.5)
+    assert s["touchdown_state"]["axis_tilt_deg"] == 0.0 and s["touchdown_state"]["transverse_rate_radps"] == 0.0
     json.dumps(s)  # serialisable as is
+
+
+def test_summary_touchdown_state_shows_the_yaw_a_flip_picked_up(tmp_path):
+    """A flip that yaws 8 deg in the air: the bag-only summary reports it at touch-down (the pelvis y
+    axis, about which a somersault turns, 8 deg off world y), not at lift-off."""
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "bag", rotation_deg=360.0, final_z=0.9, flight_yaw_deg=8.0)
+    s = summarize_bag(tmp_path / "bag", kind="frontflip")
+    assert s["liftoff_state"]["axis_tilt_deg"] == pytest.approx(0.0, abs=0.01)
+    assert s["touchdown_state"]["axis_tilt_deg"] == pytest.approx(8.0, abs=0.05)
+    assert s["touchdown_state"]["transverse_rate_radps"] > 0.05
+    assert s["touchdown_state"]["rotation_deg"] == pytest.approx(360.0, abs=1.0)
+    assert s["outcome"] == "landed"         # a diagnostic, not a landing criterion
 
 
 def test_summary_body_contact_and_unknown(tmp_path):
