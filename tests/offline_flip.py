@@ -36,7 +36,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     ref = session.jumping_reference()
     session.started(start)
     ctl.set_reference(to_sampled(ref, start))
-    log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], events=[], fell=None)
+    log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], events=[], references=[], fell=None)
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
         for ev in sim.pop_events():
@@ -51,13 +51,16 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 if not landing_reference:
                     r = None
             if r is not None:
+                log["references"].append((ev.time, r))
                 ctl.set_reference(to_sampled(r, ev.time))
         q, v = sc.from_simulator(sim)
         u, info = ctl.compute(q, v, sim.time)
         sim.step(u)
         if sim.step_index % every == 0:
-            p, _ = sim.pelvis_pose()
+            p, (qw, qx, qy, qz) = sim.pelvis_pose()
             log["t"].append(sim.time)
+            # angle of the pelvis y axis (the flywheel's) from world y: the roll/yaw a flip picks up
+            log["axis_tilt"].append(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (qx * qx + qz * qz)))))
             log["z"].append(p[2])
             log["x"].append(p[0])
             log["pitch"].append(ctl.pitch)
@@ -67,7 +70,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
         if sim.body_contacts():
             log["fell"] = sim.time
             break
-    out = {k: (np.array(v) if k not in ("events", "fell") else v) for k, v in log.items()}
+    out = {k: (np.array(v) if k not in ("events", "references", "fell") else v) for k, v in log.items()}
     out.update(sim=sim, ctl=ctl, session=session)
     return out
 

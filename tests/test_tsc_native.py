@@ -144,7 +144,7 @@ def test_controller_torques_match(mjcf):
 def _all_outputs(ctl):
     """Every output object of a controller (each domain's)."""
     outs = [*ctl.ground_outputs, *ctl.jumping_outputs, ctl.o_Hfw, ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe,
-            ctl.o_j_pre, ctl.o_j_post, *ctl.o_swing]
+            ctl.o_j_pre, ctl.o_j_post, *ctl.o_swing, ctl.o_axis]
     return outs
 
 
@@ -185,7 +185,8 @@ def test_qp_terms_match(mjcf, monkeypatch):
     tn, tp = TSC(dn, cop_margin=0.1), TSC(dp, cop_margin=0.1)
     ctl = Controller(mjcf)
     lists = [ctl.ground_outputs, ctl.jumping_outputs + [ctl.o_swing[0]],
-             [ctl.o_Hfw, *ctl.o_Lleg, ctl.o_j_pre], [ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe, ctl.o_j_post]]
+             [ctl.o_Hfw, *ctl.o_Lleg, ctl.o_j_pre], [ctl.o_pitch, *ctl.o_Lleg, ctl.o_axis, ctl.o_j_pre],
+             [ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe, ctl.o_j_post]]
     seen = []
     orig = T.SOLVERS["daqp"].solve
 

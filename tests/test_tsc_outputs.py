@@ -15,7 +15,7 @@ def ctl():
 
 
 def _outputs(c):
-    return ([c.o_H, c.o_L, c.o_com, c.o_pel, c.o_Hfw, c.o_j_pre, c.o_j_post] + c.o_Lleg + c.o_beta + c.o_toe)
+    return ([c.o_H, c.o_L, c.o_com, c.o_pel, c.o_Hfw, c.o_j_pre, c.o_j_post, c.o_axis] + c.o_Lleg + c.o_beta + c.o_toe)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -10,7 +10,8 @@ Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs p
   unobserved, so it is held as an extra output.  Names missing from the reference keep their standing
   values.
 * FLIGHT — Y1 = H_flywheel - H_flywheel^des(t) (eq. Y^F_1);  t < T1: per-leg L and the motor joints
-  except the knees held at their lift-off values q+;  t >= T1: per-leg L, leg angle -> -beta+, toe
+  except the knees held at their lift-off values q+, and the pelvis y axis held along world y (not in
+  the paper: see DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
   pitch -> 0, hip roll/yaw held (eq. Y^F_2), per leg since Cassie has two.
 
 Switching: a JUMPING reference whose start time has come starts the flip (if it is not more than
@@ -173,6 +174,17 @@ DEFAULT_GAINS = {
     "toe_pitch": (1.0, 100.0, 20.0),
     "swing": (10.0, 400.0, 40.0),
     "pitch": (10.0, 100.0, 20.0),
+    # FLIGHT of a somersault, before T1: the pelvis y axis (the flywheel's) held along world y
+    # (PelvisAxisTilt; the hip joints are the only actuators that turn the pelvis off that axis).
+    # Pitch is the robot's intermediate principal axis (tucked, flywheel spin excluded: I_roll 2.2-3.2
+    # > I_pitch 2.2-2.7 > I_yaw 0.8-1.3 kg*m^2) and, while the flywheel spins against the body to speed
+    # the turn, the somersault about it is unstable (gyrostat): roll/yaw of 2-6 deg and transverse
+    # rates of 1-3 rad/s grew by touch-down; of the graph frontflips of earlier runs, all 12 with more
+    # than 0.9 rad/s fell.  Measured offline (tests/offline_flip.py, motor speed scale 3, 260 N*m, apex
+    # 1.3 m, 15 start times from 0.3 to 3.6 s), landed backflips / frontflips: without 6 / 1, weight
+    # 5: 12 / 2, 10: 11 / 5, 20: 6 / 4; weight 10 over the whole flight: 2 / 5 of 10 (the hips, still
+    # turning the pelvis after T1, misplaced the feet).  Not in a hop (no turn, nothing unstable).
+    "axis": (10.0, 100.0, 20.0),
 }
 
 # JUMPING overrides (name: (weight, kp, kd)): the momentum is the task of the push-off (H_pitch weight 3:
@@ -377,6 +389,8 @@ class Controller:
                                 _mk(O.PelvisOrientation, "pelvis", gj, axes=("roll", "pitch", "yaw"))]
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
         self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=lambda: self.pitch)
+        self.o_axis = _mk(O.PelvisAxisTilt, "axis", g)
+        self._z2 = np.zeros(2)
         self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
         self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
@@ -625,6 +639,9 @@ class Controller:
         outs = outs + self.o_Lleg
         des = des + [d("L", f["L"][k]) for k in range(2)]
         if tau < T1:
+            if self._somersault and self.o_axis.weight > 0.0:          # see DEFAULT_GAINS["axis"]
+                outs.append(self.o_axis)
+                des.append(Desired(self._z2, self._z2, self._z2))
             outs.append(self.o_j_pre)
             des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
         else:

@@ -359,3 +359,27 @@ class SagittalPitch(Output):
     def value(self):
         """The pitch of this tick (``source()``), the compiled task's input."""
         return self._source()
+
+
+class PelvisAxisTilt(Output):
+    """Tilt of the pelvis y axis (the flywheel's axis) out of the world y direction, degree 2:
+    y = the world x and z components of r = R e_y (0 when the pelvis turns only about world y, as in
+    a somersault).  ydot = (omega x r)_{x,z} = -[r]x R omega_local, yddot = J vdot + (omega x (omega x r))_{x,z}
+    with omega = R omega_local (world).  Defined at every pitch, unlike roll and yaw Euler angles."""
+
+    dim = 2
+
+    def evaluate(self, dyn):
+        b = dyn.model.idx_vs[dyn.base_jid]
+        R = dyn.R_base
+        r = R[:, 1]
+        w = R @ dyn.v[b + 3:b + 6]
+        rx = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+        J = np.zeros((2, dyn.nv))
+        J[:, b + 3:b + 6] = (-rx @ R)[[0, 2]]
+        ydot = np.cross(w, r)
+        drift = np.cross(w, ydot)
+        return r[[0, 2]].copy(), J, drift[[0, 2]], ydot[[0, 2]]
+
+    def native_spec(self, dyn):
+        return "axis", [dyn.model.idx_vs[dyn.base_jid]], [], 2

@@ -30,6 +30,7 @@ namespace
     FOOT_PITCH,   // FootPitch
     FOOT_POINTS,  // FootPoints
     PITCH,        // SagittalPitch (value given per call)
+    AXIS,         // PelvisAxisTilt
   };
 
   struct Spec
@@ -43,8 +44,8 @@ namespace
   Kind kind_of(const std::string & s)
   {
     static const char * names[] = {"centroidal", "flywheel", "leg_length", "leg_angle", "com",
-                                   "pelvis", "joints", "foot_pitch", "foot_points", "pitch"};
-    for (int k = 0; k < 10; ++k)
+                                   "pelvis", "joints", "foot_pitch", "foot_points", "pitch", "axis"};
+    for (int k = 0; k < 11; ++k)
       if (s == names[k])
         return Kind(k);
     throw std::invalid_argument("tsc_native: unknown output kind " + s);
@@ -118,6 +119,9 @@ public:
         break;
       case PITCH:
         pitch(t, s, values.at(iv++));
+        break;
+      case AXIS:
+        axis(t, s);
         break;
       }
     }
@@ -435,6 +439,31 @@ private:
     y_[row] = value;
     drift_[row] = 0.0;
     ydot_[row] = J_.row(row).dot(t.v);
+  }
+
+  // outputs.PelvisAxisTilt: i = (base v index); world x, z of r = R e_y, ydot = w x r,
+  // drift = w x (w x r), J = rows x, z of -[r]x R (w = R omega_local, world)
+  void axis(const TickTerms & t, const Spec & s)
+  {
+    const long b = s.i[0];
+    const auto & R = t.R_base;
+    const double r[3] = {R(0, 1), R(1, 1), R(2, 1)};
+    double w[3];
+    for (int c = 0; c < 3; ++c)
+      w[c] = R(c, 0) * t.v[b + 3] + R(c, 1) * t.v[b + 4] + R(c, 2) * t.v[b + 5];
+    const double yd[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]};
+    const double dr[3] = {w[1] * yd[2] - w[2] * yd[1], w[2] * yd[0] - w[0] * yd[2], w[0] * yd[1] - w[1] * yd[0]};
+    const double m[2][3] = {{0.0, r[2], -r[1]}, {r[1], -r[0], 0.0}};   // rows x, z of -[r]x
+    const int comp[2] = {0, 2};
+    for (int j = 0; j < 2; ++j)
+    {
+      const long row = s.row + j;
+      for (int c = 0; c < 3; ++c)
+        J_(row, b + 3 + c) = m[j][0] * R(0, c) + m[j][1] * R(1, c) + m[j][2] * R(2, c);
+      y_[row] = r[comp[j]];
+      ydot_[row] = yd[comp[j]];
+      drift_[row] = dr[comp[j]];
+    }
   }
 
   long nv_, nu_, m_ = 0;
