@@ -2,7 +2,8 @@
 """Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
 measured over the stepping loop from the bag's /clock log times (wall-clock receive times), start-up
 reported apart, with the fraction of the steps' /clock and /odom messages the bag holds (a lockstep
-run must lose none).  Prints a table.  The machine's load average is printed with it: on a shared
+run must lose none).  Prints a table, and a second one with the simulator's loop per step (its log:
+simulate, publish the state, wait for the controller's command, planner holds, rest).  The machine's load average is printed with it: on a shared
 2-core machine the factor follows the other processes.
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
@@ -34,10 +35,30 @@ def one_run(kind: str, out: Path, extra: list[str]) -> dict:
     s = json.loads((out / "summary.json").read_text())
     run = json.loads((out / "run.json").read_text())
     tick = s.get("tsc_tick_us") or {}
-    return {"exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
+    return {"loop": sim_loop_us(out / "logs" / "sim.log"), "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
             "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
             "rtf": s.get("real_time_factor"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
             "recorded": recorded_fraction(out / "bag"), "load": os.getloadavg()[0], "process_total_s": total}
+
+
+def sim_loop_us(log: Path) -> dict:
+    """{part: mean us per step} from sim_node's 'loop per step (mean us): name value, ...' line."""
+    try:
+        text = log.read_text(errors="replace")
+    except OSError:
+        return {}
+    marker = "loop per step (mean us): "
+    lines = [ln for ln in text.splitlines() if marker in ln]
+    if not lines:
+        return {}
+    out = {}
+    for part in lines[-1].split(marker, 1)[1].split(", "):
+        name, _, val = part.rpartition(" ")
+        try:
+            out[name] = float(val)
+        except ValueError:
+            pass
+    return out
 
 
 def recorded_fraction(bag: Path) -> str:
@@ -75,6 +96,16 @@ def main() -> int:
     for i, r in enumerate(rows):
         print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
               f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
+    parts = list(dict.fromkeys(n for r in rows for n in r["loop"]))
+    if parts:
+        print()
+        print("simulator loop per step, mean us (sim_node's log; wait for command = the controller's tick, "
+              "its messages and the hand-overs)")
+        print("| run | " + " | ".join(parts) + " | total |")
+        print("|-----|" + "|".join("-" * (len(n) + 2) for n in parts) + "|-------|")
+        for i, r in enumerate(rows):
+            print(f"| {i} | " + " | ".join(f"{r['loop'].get(n, float('nan')):.0f}" for n in parts)
+                  + f" | {sum(r['loop'].values()):.0f} |")
     rtf = [r["rtf"] for r in rows if r["rtf"]]
     if rtf:
         print(f"real-time factor over the stepping loop: median {statistics.median(rtf):.3f}, best {max(rtf):.3f}, "

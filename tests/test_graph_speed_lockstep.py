@@ -97,11 +97,11 @@ def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0):
         os.kill(pid, signal.SIGCONT)
     output = p.communicate(timeout=300)[0]
     assert p.returncode == 0, output
-    return load_bag(out / "bag", ["/clock", "/joint_states", "/odom", "/motor_command"])
+    return load_bag(out / "bag", ["/clock", "/joint_states", "/odom", "/motor_command"]), out
 
 
 def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
-    a, b = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5)
+    (a, out_a), (b, _) = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5)
     n = 2000                                                            # 1 s of 0.5 ms steps
     for bag in (a, b):
         steps = {"/clock": bag["/clock"]["sim_t"], "/odom": bag["/odom"]["t"],
@@ -116,6 +116,15 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
         # distinct, increasing log times, and the bag shows the rate
         dt_log = np.diff(bag["/clock"]["t_log"])
         assert np.all(dt_log >= 0) and np.count_nonzero(dt_log > 0) > 0.9 * len(dt_log)
+    # the simulator's loop per step (its log), as scripts/bench_graph.py reads it
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("bench_graph", FLIP.parent / "bench_graph.py")
+    bench_graph = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_graph)
+    loop = bench_graph.sim_loop_us(out_a / "logs" / "sim.log")
+    assert list(loop) == ["simulate", "publish state", "wait for command", "planner holds", "rest"], loop
+    assert loop["simulate"] > 0 and loop["publish state"] > 0 and loop["wait for command"] > 0
+    assert loop["planner holds"] == 0 and loop["rest"] >= 0                # standing: nothing to plan
     for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang"))):
         _, ia = np.unique(a[topic]["t"], return_index=True)
         _, ib = np.unique(b[topic]["t"], return_index=True)

@@ -16,7 +16,7 @@
 - flip_msgs types come from the .msg files (rosbags.typesys.get_types_from_msg), so the bag
   carries their full message definitions.
 - Progress on /flip_recorder/status (std_msgs/String, JSON): messages recorded and publishers
-  matched per topic, twice a second; an orchestrator waits on "matched" before it starts the
+  matched per topic and the stamp of the newest /clock recorded (``last_clock_ns``), twice a second; an orchestrator waits on "matched" before it starts the
   experiment (another process seeing both endpoints does not mean they have matched).
 - SIGINT/SIGTERM, or `duration`, ends the recording; the bag is closed, counts are printed as one
   JSON line `{"recorded": {...}}` on stdout.
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import signal
+import struct
 import time
 from pathlib import Path
 
@@ -40,6 +41,7 @@ EXCLUDE = {"/parameter_events"}
 POLL_S = 0.01          # main loop period: take what is queued, write it
 DISCOVER_S = 0.2       # period of the graph poll for new topics
 STATUS_S = 0.5         # period of /<node>/status
+_CLOCK_STAMP = struct.Struct("<iI")   # rosgraph_msgs/Clock's time, after the 4-byte CDR header
 
 
 def _rb_qos(reliable: bool, transient_local: bool, depth: int) -> Qos:
@@ -72,6 +74,7 @@ class Recorder:
         self.subs: dict[str, object] = {}
         self.counts: dict[str, int] = {}
         self.qos_used: dict[str, dict] = {}
+        self.last_clock_ns: int | None = None
         self.closed = False
         # progress for whoever orchestrates: {"counts": {...}} on /<node>/status, twice a second
         from std_msgs.msg import String
@@ -83,7 +86,8 @@ class Recorder:
     def publish_status(self) -> None:
         if not self.closed:
             self._status_pub.publish(self._String(data=json.dumps({"counts": self.counts,
-                                                                   "matched": self.matched()})))
+                                                                   "matched": self.matched(),
+                                                                   "last_clock_ns": self.last_clock_ns})))
 
     def matched(self) -> dict[str, int]:
         """Publishers each subscription is matched with, as this process's DDS sees it (the graph
@@ -169,12 +173,16 @@ class Recorder:
         for topic, sub in self.subs.items():
             if sub is None:
                 continue
-            conn, n = self.conns[topic], 0
+            conn, n, raw = self.conns[topic], 0, None
             while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
                 t = r[1].get("received_timestamp") or time.time_ns()
-                write(conn, t, r[0])
+                raw = r[0]
+                write(conn, t, raw)
                 n += 1
             self.counts[topic] += n
+            if topic == "/clock" and raw is not None and len(raw) >= 12:
+                sec, nanosec = _CLOCK_STAMP.unpack_from(raw, 4)
+                self.last_clock_ns = max(self.last_clock_ns or 0, sec * 1_000_000_000 + nanosec)
 
     def close(self) -> dict:
         if not self.closed:

@@ -271,6 +271,9 @@ class SimNode:
         wall0 = time.monotonic()
         k = 0
         late = missing = 0
+        # wall time of the loop's parts (s, summed over the steps): the per-step budget in the log
+        spent = {'simulate': 0.0, 'publish state': 0.0, 'wait for command': 0.0}
+        clock = time.perf_counter
         last_cmd_k, damping = 0, False
         try:   # the summary also when SIGINT (KeyboardInterrupt) ends the run
             while rclpy.ok() and (n_steps is None or k < n_steps):
@@ -286,10 +289,14 @@ class SimNode:
                 if touching and not self.body_contact:
                     self._publish_body_contact(k, touching)
                 self.body_contact = bool(touching)
+                c0 = clock()
                 self._publish_state(k)
+                c1 = clock()
+                spent['publish state'] += c1 - c0
                 if self.controller == 'tsc':
                     if self.mode == 'lockstep':
                         cmd = self._wait_command(k)
+                        spent['wait for command'] += clock() - c1
                         if cmd is None:
                             break
                         self.command[:] = cmd
@@ -309,7 +316,9 @@ class SimNode:
                         if cmd is not None and damping:
                             log.info('controller back: damping released')
                             damping = False
+                c2 = clock()
                 self.sim.step(self.command)
+                spent['simulate'] += clock() - c2
                 k += 1
                 if self.mode == 'realtime':
                     lag = wall0 + k * self.dt - time.monotonic()
@@ -327,6 +336,11 @@ class SimNode:
                      f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
                      + (f'; realtime: {late} late steps, {missing} steps without a new command'
                         if self.mode == 'realtime' else ''))
+            if k:
+                per = {name: 1e6 * v / k for name, v in spent.items()}
+                per['planner holds'] = 1e6 * sum(self.hold_times) / k
+                per['rest'] = max(1e6 * wall / k - sum(per.values()), 0.0)
+                log.info('loop per step (mean us): ' + ', '.join(f'{n} {v:.0f}' for n, v in per.items()))
         return 0
 
     def _wait_command(self, k):
