@@ -6,7 +6,7 @@ flip fits its flight time; with the 195 N*m flywheel the frontflip's planned tur
 flywheel saturates and the body over-rotates or the legs fold).
 
 Measured offline (15 start times, 0.3 ... 3.6 s): the backflip lands from 11, the frontflip from 5
-(without the flight's flywheel-axis output, tsc_controller.domains DEFAULT_GAINS["axis"]: 6 and 1).
+(without the flight's flywheel-axis output, tsc_controller.domains DEFAULT_GAINS["axis"]: 5 and 1).
 The start time below lands both; the tests guard that the pipeline keeps doing so."""
 import math
 
