@@ -89,3 +89,19 @@ def test_frontflip_lands_and_stands():
     assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
     of.assert_stands(sim, ctl, z_stand)
     assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)                        # one whole turn, forwards
+
+
+def test_bench_landings_reports_a_flip(tmp_path):
+    """scripts/bench_landings.py (the offline landing-rate table) runs a flip and reports its touch-down."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_landings.py"
+    r = subprocess.run([sys.executable, str(script), "--kinds", "backflip", "--starts", "0.5", "--seconds", "2.3",
+                        "--jobs", "1"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    row = next(ln for ln in r.stdout.splitlines() if ln.startswith("| backflip | 0.50 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert float(cells[4]) > 0.45                                   # the flight
+    assert float(cells[5]) == pytest.approx(-360.0, abs=10.0)       # one turn at touch-down
+    assert r.stdout.splitlines()[-1].startswith('{"backflip": ')

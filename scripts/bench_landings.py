@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""Landing rate of the somersaults without ROS: `tests/offline_flip.py` (simulator, planner and
+controller wired as the node graph wires them, one process) from a set of start times, two flips at
+a time.  Prints a table: per start time whether the flip landed (no body but the feet touched the
+ground until the end, pelvis upright at +-2pi and above 0.8 m), the touch-down state and the time
+of a fall; and the count per flip.  The start time is what differs between graph runs (the request
+arrives while the robot stands), so the count is the offline estimate of a graph run's landing rate.
+
+    .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
+        [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
+
+(defaults: the somersault robot of the README and the 15 start times of the README's tally)
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
+EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
+
+
+def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float) -> dict:
+    sys.path.insert(0, str(REPO / "tests"))
+    import numpy as np
+
+    import offline_flip as of
+    from cassie_flip_sim.model import export_mjcf
+    from cassie_flip_sim.simulator import Simulator
+    from tsc_controller import Controller
+    from tsc_controller.domains import config_overrides
+    sim = Simulator(motor_speed_scale=scale, flywheel_torque=torque)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
+                     **config_overrides(controller))
+    r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex,
+               motor_speed_scale=scale, flywheel_torque=torque)
+    ev = r["events"]
+    lo = next((t for k, t in ev if k == 0), None)
+    td = next((t for k, t in ev if k == 1 and lo is not None and t > lo), None)
+    out = {"kind": kind, "start": start, "fell_at": r["fell"], "flight_s": None, "td_rotation_deg": None,
+           "td_axis_tilt_deg": None}
+    if td is not None:
+        i = min(int(np.searchsorted(r["t"], td)), len(r["t"]) - 1)
+        out.update(flight_s=td - lo, td_rotation_deg=math.degrees(r["pitch"][i]),
+                   td_axis_tilt_deg=math.degrees(r["axis_tilt"][i]))
+    z_end, pitch_end = float(r["z"][-1]), float(r["pitch"][-1])
+    out["landed"] = bool(r["fell"] is None and td is not None and z_end > 0.8
+                         and abs(pitch_end - EXPECTED[kind]) < 0.3)
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kinds", nargs="+", default=["backflip", "frontflip"], choices=sorted(EXPECTED))
+    ap.add_argument("--starts", nargs="+", type=float, default=list(START_TIMES))
+    ap.add_argument("--seconds", type=float, default=9.0, help="sim time of each run (s)")
+    ap.add_argument("--controller", default="", help="ControllerConfig overrides, JSON (as flip run --controller)")
+    ap.add_argument("--motor-speed-scale", type=float, default=3.0)
+    ap.add_argument("--flywheel-torque", type=float, default=260.0)
+    ap.add_argument("--apex", type=float, default=1.3)
+    ap.add_argument("--jobs", type=int, default=2)
+    a = ap.parse_args()
+    from tsc_controller.domains import config_overrides
+    config_overrides(a.controller)                     # refuse a bad setting before anything runs
+    jobs = [(k, s) for k in a.kinds for s in a.starts]
+    with ProcessPoolExecutor(max_workers=a.jobs) as pool:
+        futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex)
+                for k, s in jobs]
+        rows = [f.result() for f in futs]
+    print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "
+          f"{a.flywheel_torque} N*m, apex {a.apex} m, {a.seconds} s each, controller {a.controller or '{}'}")
+    print("| flip | start s | landed | fell at s | flight s | touch-down rotation deg | axis tilt deg |")
+    print("|------|---------|--------|-----------|----------|-------------------------|---------------|")
+    f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731
+    for r in rows:
+        print(f"| {r['kind']} | {r['start']:.2f} | {'yes' if r['landed'] else 'no'} | {f(r['fell_at'], 3)} | "
+              f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} |")
+    for k in a.kinds:
+        n = [r["landed"] for r in rows if r["kind"] == k]
+        print(f"{k}: landed from {sum(n)} of {len(n)} start times")
+    print(json.dumps({k: sum(r["landed"] for r in rows if r["kind"] == k) for k in a.kinds}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
