@@ -237,8 +237,13 @@ class ControllerConfig:
     push_rising: float = 1.0          # m/s
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
-    catch_decel: float = 15.0         # m/s^2, leg deceleration of the fallback landing (leg_catch)
-    landing_moment: float = 12.0      # N*m, mean pitch moment the fallback landing uses to remove H_pitch
+    # catch_decel: m/s^2, leg deceleration of the fallback landing (leg_catch); landing_moment: N*m, mean
+    # pitch moment it uses to remove H_pitch.  25 and 8 (were 15 and 12): with 15 / 12 the landings
+    # rebounded 0.3-0.8 s after touch-down and drifted off; measured offline (scripts/bench_landings.py,
+    # somersault robot), landed backflips / frontflips of 15: 11 / 5 -> 15 / 11, and on 15 other
+    # start times 13 / 3 -> 15 / 12; alone, decel 25: 12 / 8, moment 8: 15 / 7, moment 6: 14 / 8
+    catch_decel: float = 25.0
+    landing_moment: float = 8.0
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
