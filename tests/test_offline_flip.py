@@ -5,8 +5,9 @@ x3 and a 260 N*m flywheel motor, apex 1.3 m (0.52-0.58 s of flight).  With the p
 flip fits its flight time; with the 195 N*m flywheel the frontflip's planned turn does not (the
 flywheel saturates and the body over-rotates or the legs fold).
 
-Measured offline (15 start times, 0.3 ... 3.6 s): the backflip lands from 11, the frontflip from 5
-(without the flight's flywheel-axis output, tsc_controller.domains DEFAULT_GAINS["axis"]: 5 and 1).
+Measured offline (scripts/bench_landings.py, 15 start times, 0.3 ... 3.6 s): the backflip lands from
+15, the frontflip from 11 (with the earlier landing settings, catch_decel 15 and landing_moment 12: 11
+and 5; without the flight's flywheel-axis output as well, DEFAULT_GAINS["axis"]: 5 and 1).
 The start time below lands both; the tests guard that the pipeline keeps doing so."""
 import math
 
