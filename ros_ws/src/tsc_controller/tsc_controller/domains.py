@@ -181,7 +181,8 @@ DEFAULT_GAINS = {
     # the turn, the somersault about it is unstable (gyrostat): roll/yaw of 2-6 deg and transverse
     # rates of 1-3 rad/s grew by touch-down; of the graph frontflips of earlier runs, all 12 with more
     # than 0.9 rad/s fell.  Measured offline (tests/offline_flip.py, motor speed scale 3, 260 N*m, apex
-    # 1.3 m, 15 start times from 0.3 to 3.6 s), landed backflips / frontflips: without 5 / 1, weight
+    # 1.3 m, 15 start times from 0.3 to 3.6 s; landing settings of then, catch_decel 15, landing_moment
+    # 12), landed backflips / frontflips: without 5 / 1, weight
     # 5: 12 / 2, 10: 11 / 5, 20: 6 / 4; weight 10 over the whole flight: 2 / 5 of 10 (the hips, still
     # turning the pelvis after T1, misplaced the feet).  Not in a hop (no turn, nothing unstable).
     "axis": (10.0, 100.0, 20.0),
