@@ -130,12 +130,11 @@ for wait in (lambda: w.wait_until("never", lambda: False, timeout=20),
              lambda: w.spin_until(lambda: False, timeout=20)):
     interrupt_latch.arm()
     SignalsOnDelete()
-    t0 = time.monotonic()
     try:
         wait()
         print("no-interrupt")
     except Interrupted as e:
-        print(e, round(time.monotonic() - t0) < 5)
+        print(e)
     interrupt_latch.hold()
     interrupt_latch.disarm()
 w.close()
@@ -143,7 +142,7 @@ w.close()
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "Exception ignored" in r.stderr          # the handler's own exception was lost ...
-    assert r.stdout.split() == ["SIGINT", "True", "SIGINT", "True"], r.stdout + r.stderr   # ... yet both waits ended
+    assert r.stdout.split() == ["SIGINT", "SIGINT"], r.stdout + r.stderr   # ... yet both waits ended with it
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,8 +16,10 @@
 - flip_msgs types come from the .msg files (rosbags.typesys.get_types_from_msg), so the bag
   carries their full message definitions.
 - Progress on /flip_recorder/status (std_msgs/String, JSON): messages recorded and publishers
-  matched per topic and the stamp of the newest /clock recorded (``last_clock_ns``), twice a second; an orchestrator waits on "matched" before it starts the
-  experiment (another process seeing both endpoints does not mean they have matched).
+  matched per topic and the stamp of the newest /clock recorded (``last_clock_ns``), twice a
+  second; an orchestrator waits on "matched" before it starts the experiment (another process
+  seeing both endpoints does not mean they have matched), and on "last_clock_ns" before it stops
+  the recorder.
 - SIGINT/SIGTERM, or `duration`, ends the recording; the bag is closed, counts are printed as one
   JSON line `{"recorded": {...}}` on stdout.
 """

@@ -241,22 +241,16 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     return s
 
 
-def axis_tilt(quat: np.ndarray) -> np.ndarray:
-    """Angle between the pelvis y axis (the flywheel's axis) and world y (rad)."""
-    R = quat_to_rot(quat)
-    return np.arccos(np.clip(R[:, 1, 1], -1.0, 1.0))
-
-
-def _event_state(od, t, th, w_world, t_event):
+def _event_state(od, t, th, R, w_world, t_event):
     """Pelvis state at an event (see the module doc), or None if /odom does not cover it."""
     if t_event is None or not len(t) or t_event > t[-1]:
         return None
     i = int(np.searchsorted(t, t_event))
-    R = quat_to_rot(od["quat"][i:i + 1])[0]
-    v = R @ od["lin"][i]
+    v = R[i] @ od["lin"][i]
     return {"t": _f(t[i]), "rotation_deg": _f(math.degrees(th[i] - th[0]), 1),
             "pitch_rate_degps": _f(math.degrees(w_world[i, 1]), 1),
-            "axis_tilt_deg": _f(math.degrees(axis_tilt(od["quat"][i:i + 1])[0]), 2),
+            # angle of the pelvis y axis (the flywheel's) from world y
+            "axis_tilt_deg": _f(math.degrees(math.acos(min(1.0, max(-1.0, R[i, 1, 1])))), 2),
             "transverse_rate_radps": _f(math.hypot(w_world[i, 0], w_world[i, 2]), 3),
             "velocity_mps": [_f(x, 3) for x in v]}
 
@@ -275,8 +269,8 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
     if len(t) > 1 and np.all(np.diff(t) >= 0):
         s["net_rotation_integrated_deg"] = _f(math.degrees(np.trapezoid(w_world[:, 1], t)), 1)
         if tsrc.startswith("header"):          # event times are sim times
-            s["liftoff_state"] = _event_state(od, t, th, w_world, s.get("liftoff_time_s"))
-            s["touchdown_state"] = _event_state(od, t, th, w_world, s.get("touchdown_time_s"))
+            s["liftoff_state"] = _event_state(od, t, th, R, w_world, s.get("liftoff_time_s"))
+            s["touchdown_state"] = _event_state(od, t, th, R, w_world, s.get("touchdown_time_s"))
     if takeoff_z is None:
         takeoff_z = 0.0
     s["takeoff_ground_z_m"] = takeoff_z
