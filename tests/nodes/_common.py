@@ -1,25 +1,27 @@
 """Shared bits of the stand-in nodes (test fixtures, not part of the product)."""
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from cassie_flip_sim.node_stop import run_until_stopped
 
 
 def run(node_factory, args=None) -> int:
     """Create the node, spin until SIGINT/SIGTERM (exit 0) or until the node calls
-    `self.finished = True` (exit node.exit_code)."""
+    `self.finished = True` (exit node.exit_code); ends the way the product's nodes do."""
     rclpy.init(args=args)
-    node = None
-    try:
-        node = node_factory()
-        while rclpy.ok() and not getattr(node, "finished", False):
-            rclpy.spin_once(node, timeout_sec=0.1)
-        return int(getattr(node, "exit_code", 0))
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except Exception:  # noqa: BLE001 - e.g. RCLError from a wait set after the signal shut rcl down
-        if not rclpy.ok():
-            return 0
-        raise
-    finally:
-        if node is not None:
-            node.destroy_node()
+    nodes = []
+
+    def loop():
+        try:
+            nodes.append(node_factory())
+            while rclpy.ok() and not getattr(nodes[0], "finished", False):
+                rclpy.spin_once(nodes[0], timeout_sec=0.1)
+            return int(getattr(nodes[0], "exit_code", 0))
+        except Exception:  # noqa: BLE001 - e.g. RCLError from a wait set after the signal shut rcl down
+            if not rclpy.ok():
+                return 0
+            raise
+
+    def close():
+        for n in nodes:
+            n.destroy_node()
         rclpy.try_shutdown()
+    return run_until_stopped(loop, close)

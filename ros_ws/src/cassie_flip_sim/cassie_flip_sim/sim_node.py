@@ -23,7 +23,7 @@ import numpy as np
 import rclpy
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 from .lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage, SubscriptionSet, fields,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
                        odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
+from .node_stop import run_until_stopped
 from .contacts import Event
 from .model import Scenario, export_mjcf
 from .simulator import Simulator
@@ -370,16 +371,12 @@ def main(args=None):
         print(f'sim_node: {e}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    try:
-        rc = node.run()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        rc = 0
-    finally:
+    def close():
         node.subs.destroy()
         node.node.destroy_node()
         node.srv_node.destroy_node()
         rclpy.try_shutdown()
-    return rc
+    return run_until_stopped(node.run, close)
 
 
 if __name__ == '__main__':

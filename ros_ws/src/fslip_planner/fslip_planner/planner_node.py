@@ -13,8 +13,8 @@ import sys
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
+from cassie_flip_sim.node_stop import run_until_stopped
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
 from rosgraph_msgs.msg import Clock
@@ -143,16 +143,12 @@ class PlannerNode:
 def main(args=None):
     rclpy.init(args=args)
     node = PlannerNode()
-    try:
-        rclpy.spin(node.node)
-    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or SIGINT handled by rclpy alone
-        pass
-    finally:
+    def close():
         node._clock.destroy()
         node._clock_node.destroy_node()
         node.node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return run_until_stopped(lambda: rclpy.spin(node.node), close)
 
 
 if __name__ == '__main__':

@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage,
                                       SubscriptionSet, fields, joint_state_layout,
                                       motor_command_layout, odometry_layout,
                                       pin_to_lockstep_cpu, read_stamp_ns, stamp_to_ns)
+from cassie_flip_sim.node_stop import run_until_stopped
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
@@ -140,9 +140,14 @@ class TscNode:
                 self.pub.publish(self.cmd.data())      # the simulator asked again: same answer
             elif k_js > self.answered_ns or k_js == 0:
                 self._answer(k_js)
+
+    def log_ticks(self):
+        """The tick's compute times of this run, to the console only: it is written on the way
+        out, after a stop has shut down the context that /rosout is published in."""
         if self.tick_us:
             a = np.asarray(self.tick_us)
-            log.info(f'{a.size} ticks: median {np.median(a):.0f} us, p99 {np.percentile(a, 99):.0f} us')
+            rclpy.logging.get_logger('tsc_node_ticks').info(
+                f'{a.size} ticks: median {np.median(a):.0f} us, p99 {np.percentile(a, 99):.0f} us')
 
 
 def main(args=None):
@@ -154,15 +159,12 @@ def main(args=None):
         print(f"tsc_node: {e}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    try:
-        node.run()
-    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or SIGINT handled by rclpy alone
-        pass
-    finally:
+    def close():
+        node.log_ticks()
         node.subs.destroy()
         node.node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return run_until_stopped(node.run, close)
 
 
 if __name__ == '__main__':
