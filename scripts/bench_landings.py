@@ -8,6 +8,7 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
+        [--distance 0]
 
 (defaults: the somersault robot of the README and the 15 start times of the README's tally)
 """
@@ -25,7 +26,8 @@ START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.
 EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
 
 
-def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float) -> dict:
+def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
+        distance: float = 0.0) -> dict:
     sys.path.insert(0, str(REPO / "tests"))
     import numpy as np
 
@@ -38,7 +40,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
                      **config_overrides(controller))
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex,
-               motor_speed_scale=scale, flywheel_torque=torque)
+               forward_distance=distance, motor_speed_scale=scale, flywheel_torque=torque)
     ev = r["events"]
     lo = next((t for k, t in ev if k == 0), None)
     td = next((t for k, t in ev if k == 1 and lo is not None and t > lo), None)
@@ -63,17 +65,19 @@ def main() -> int:
     ap.add_argument("--motor-speed-scale", type=float, default=3.0)
     ap.add_argument("--flywheel-torque", type=float, default=260.0)
     ap.add_argument("--apex", type=float, default=1.3)
+    ap.add_argument("--distance", type=float, default=0.0, help="forward distance of the request (m; flip A: 1.0)")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     from tsc_controller.domains import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex)
+        futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
+                            a.distance)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "
-          f"{a.flywheel_torque} N*m, apex {a.apex} m, {a.seconds} s each, controller {a.controller or '{}'}")
+          f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, {a.seconds} s each, controller {a.controller or '{}'}")
     print("| flip | start s | landed | fell at s | flight s | touch-down rotation deg | axis tilt deg |")
     print("|------|---------|--------|-----------|----------|-------------------------|---------------|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731

@@ -18,7 +18,8 @@ def measured(sim: Simulator) -> MeasuredState:
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     return MeasuredState(t=sim.time, com=sim.com_position(), com_velocity=sim.com_velocity(),
                          pitch_momentum=sim.centroidal_pitch_momentum(), pelvis_pitch=pitch,
-                         pelvis_pitch_rate=float(sim.pelvis_twist("world")[1][1]))
+                         pelvis_pitch_rate=float(sim.pelvis_twist("world")[1][1]),
+                         support_center=sim.support_center())
 
 
 def to_sampled(ref, start_time, plan_id=1) -> SampledReference:

@@ -131,5 +131,7 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
                                        com_position=P(x=x[k], y=0.0, z=z[k] - 0.1),
                                        com_velocity=V3(x=vx[k], y=0.0, z=vz[k]),
                                        centroidal_pitch_momentum=30.0, left_normal_force=0.0 if ev == 0 else 500.0,
-                                       right_normal_force=0.0 if ev == 0 else 480.0), "flip_msgs/msg/ContactEvent")
+                                       right_normal_force=0.0 if ev == 0 else 480.0,
+                                       # the feet 0.2 m ahead of the COM (the COM sits at x, as above)
+                                       support_center=P(x=x[k] + 0.2, y=0.0, z=0.02)), "flip_msgs/msg/ContactEvent")
     return tr

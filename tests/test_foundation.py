@@ -322,6 +322,7 @@ def test_summary_touchdown_state_shows_the_yaw_a_flip_picked_up(tmp_path):
     assert s["touchdown_state"]["axis_tilt_deg"] == pytest.approx(8.0, abs=0.05)
     assert s["touchdown_state"]["transverse_rate_radps"] > 0.05
     assert s["touchdown_state"]["rotation_deg"] == pytest.approx(360.0, abs=1.0)
+    assert s["touchdown_com_ahead_of_feet_m"] == pytest.approx(-0.2)   # the bag's feet, 0.2 m ahead
     assert s["outcome"] == "landed"         # a diagnostic, not a landing criterion
 
 

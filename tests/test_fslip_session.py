@@ -90,6 +90,45 @@ def test_landing_reference_converges_to_rest(flow):
     assert 0 < lr.figures["solve_time"] < 1.0
 
 
+def test_landing_is_planned_from_where_the_feet_came_down():
+    """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
+    reference ends over those feet: two touch-downs that differ only in where the feet are get
+    landings that end 0.12 m apart, each over its own feet.  Without a support centre the lift-off's
+    lean is mirrored; one beyond MAX_TOUCHDOWN_LEAN is planned from that lean."""
+    def landing(support_x):
+        s = P.FlipSession("frontflip")
+        s.jumping_reference()
+        s.started(0.0)
+        lo = s.result.lift_off
+        s.flight_reference(P.MeasuredState(1.0, np.array([0.0, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                                           lo["momentum"], lo["beta"], 0.0))
+        sc = None if support_x is None else np.array([support_x, 0.0, 0.02])
+        st = P.MeasuredState(1.5, np.array([0.80, 0.0, 0.95]), np.array([lo["xdot"], 0.0, -lo["zdot"]]),
+                             lo["momentum"], -lo["beta"], 0.0, support_center=sc)
+        x0 = s._touchdown_state(st)
+        lr = s.landing_reference(st)
+        x, _, _ = lr.column("x_com")
+        r = math.hypot(lo["x"], lo["z"])
+        return x0, x, r, lo
+    x0_a, x_a, r, lo = landing(0.85)
+    x0_b, x_b, _, _ = landing(0.97)
+    assert x0_a[0] == pytest.approx(0.80 - 0.85) and x0_b[0] == pytest.approx(0.80 - 0.97)
+    assert math.hypot(x0_a[0], x0_a[1]) == pytest.approx(r)          # the leg keeps its lift-off length
+    assert x_a[0] == pytest.approx(0.80) and x_b[0] == pytest.approx(0.80)
+    assert x_a[-1] == pytest.approx(0.85, abs=0.02) and x_b[-1] == pytest.approx(0.97, abs=0.02)
+    x0_n, _, _, _ = landing(None)
+    assert x0_n[0] == pytest.approx(-r * math.sin(lo["beta"]))
+    x0_far, _, _, _ = landing(3.0)
+    assert x0_far[0] == pytest.approx(-r * math.sin(P.MAX_TOUCHDOWN_LEAN))
+
+
+def test_a_malformed_support_centre_is_refused():
+    s = P.FlipSession("frontflip")
+    with pytest.raises(ValueError, match="malformed"):
+        s.landing_reference(P.MeasuredState(1.5, np.array([0.8, 0.0, 0.95]), np.zeros(3), 0.0, 0.0, 0.0,
+                                            support_center=np.array([np.nan, 0.0, 0.0])))
+
+
 def test_finished_sequence(flow):
     s, jr, fr, lr, st_lo, st_td = flow
     assert not s.finished(st_td.t + 0.5 * lr.duration)

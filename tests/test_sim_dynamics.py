@@ -109,6 +109,20 @@ def test_standing_forces_and_accessors(sim):
     assert np.allclose(np.linalg.norm(ang_w), np.linalg.norm(ang_l))
 
 
+def test_support_center_is_under_the_standing_robot_and_moves_with_the_feet(sim):
+    """support_center: mean of the four foot contact spheres; standing, it is under the COM (the
+    standing state puts the COM over the feet) at the spheres' radius; shifting the robot moves it."""
+    from cassie_flip_sim import robot_params as P
+    sim.reset()
+    sc, c = sim.support_center(), sim.com_position()
+    assert abs(sc[0] - c[0]) < 0.03 and abs(sc[1] - c[1]) < 1e-3
+    assert sc[2] == pytest.approx(P.FOOT_RADIUS, abs=0.01)
+    q = sim.data.qpos.copy()
+    q[0] += 0.3
+    sim.reset(q, in_contact=True)
+    assert sim.support_center()[0] == pytest.approx(sc[0] + 0.3, abs=1e-9)
+
+
 def test_flight_momentum_conserved_with_flywheel_torque(sim):
     """In flight, flywheel torque changes the flywheel's spin but not H_pitch (paper eq. (8))."""
     _drop(sim, 1.0)

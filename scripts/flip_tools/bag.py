@@ -13,7 +13,7 @@ Per type (others: {"t_log", "msgs"} with the deserialised messages):
   sensor_msgs/msg/JointState    t_log, t, names, pos, vel, eff   (N, J); NaN where a name is absent
   flip_msgs/msg/MotorCommand    t_log, t, step, names, effort (N, M), compute_time_us
   flip_msgs/msg/ContactEvent    t_log, t, frame_id, step, event, domain, pelvis_pos, pelvis_quat, com_pos,
-                                com_vel, H_pitch, left_normal_force, right_normal_force
+                                com_vel, H_pitch, left_normal_force, right_normal_force, support_center
   flip_msgs/msg/FlipReference   t_log, refs: list of dicts (plan_id, domain, start_time, t,
                                 output_names, value (n,k), d_value, dd_value, parameters{}, figures)
   std_msgs/msg/String           t_log, data: list[str]
@@ -208,7 +208,10 @@ def _contact_event(msgs):
             "com_vel": np.array([_vec(m.com_velocity) for m in msgs]).reshape(-1, 3),
             "H_pitch": np.array([m.centroidal_pitch_momentum for m in msgs]),
             "left_normal_force": np.array([m.left_normal_force for m in msgs]),
-            "right_normal_force": np.array([m.right_normal_force for m in msgs])}
+            "right_normal_force": np.array([m.right_normal_force for m in msgs]),
+            # NaN for a bag whose ContactEvent definition predates the field
+            "support_center": np.array([_vec(m.support_center) if hasattr(m, "support_center") else [np.nan] * 3
+                                        for m in msgs]).reshape(-1, 3)}
 
 
 def _flip_reference(msgs):

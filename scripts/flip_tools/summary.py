@@ -29,6 +29,8 @@ the pelvis at the first lift-off and the touch-down after it (the /odom sample a
 event): rotation so far and pitch rate about world y, the axis tilt (angle of the pelvis y axis, the
 flywheel's axis, from world y: a somersault turns about it, so it is the roll/yaw the flip picked
 up), the transverse rate (world angular velocity off the y axis) and the pelvis velocity (world).
+``touchdown_com_ahead_of_feet_m``: COM x minus the feet's support centre x at that touch-down, from the
+simulator's ContactEvent (negative: the feet came down ahead of the COM, as a forward landing needs).
 """
 from __future__ import annotations
 
@@ -162,6 +164,9 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             if td:
                 s["flight_time_s"] = _f(t[td[0]] - t[lo[0]])
                 s["liftoff_time_s"], s["touchdown_time_s"] = _f(t[lo[0]]), _f(t[td[0]])
+                # where the COM came down relative to the feet (the simulator's report; older
+                # bags' ContactEvent has no support_center: NaN -> None)
+                s["touchdown_com_ahead_of_feet_m"] = _f(ce["com_pos"][td[0], 0] - ce["support_center"][td[0], 0], 3)
                 s["feet_touchdown_seen"] = True
             else:
                 s["flight_time_s"] = None

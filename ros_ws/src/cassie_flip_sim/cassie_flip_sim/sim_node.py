@@ -172,6 +172,8 @@ class SimNode:
         msg.centroidal_pitch_momentum = float(self.sim.centroidal_pitch_momentum())
         fl, fr = self.sim.foot_normal_forces()
         msg.left_normal_force, msg.right_normal_force = float(fl), float(fr)
+        sc = msg.support_center
+        sc.x, sc.y, sc.z = map(float, self.sim.support_center())
         self.pub_events.publish(msg)
         self.node.get_logger().info(
             f"t={k * self.dt:.4f} s: {event.kind.name} -> domain {msg.domain}")

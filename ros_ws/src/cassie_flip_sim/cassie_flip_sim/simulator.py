@@ -38,6 +38,8 @@ class Simulator:
         self._motor_dof = np.array([m.jnt_dofadr[j] for j in jid])
         self._act_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in self.motor_names])
         self._pelvis = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+        self._foot_geoms = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+                            for side in ("left", "right") for g in M.FOOT_GEOMS[side]]
         self._foot_forces = FootForces(m)
         self._build_joint_table()
         self.standing_qpos, _ = M.standing_state(m, self.scenario)
@@ -182,6 +184,11 @@ class Simulator:
     def foot_normal_forces(self) -> Tuple[float, float]:
         """(left, right) ground normal forces (N) that acted during the last step."""
         return self.forces
+
+    def support_center(self) -> np.ndarray:
+        """Centre of the four foot contact spheres (toe and heel of each foot), world frame: where
+        the FSLIP's foot is, whether or not the feet touch the ground."""
+        return self.data.geom_xpos[self._foot_geoms].mean(axis=0)
 
     def body_contacts(self) -> List[str]:
         """Names of the bodies other than the feet touching the terrain now (a fall)."""

@@ -36,17 +36,22 @@ ABORT_ZDOT_FRACTION = 0.5
 #: margin (flywheel I: 1.14 − 0.09 = 1.05 m).
 DEFAULT_APEX_MARGIN = 0.09
 JUMPING, FLIGHT, LANDING = 1, 2, 3
+#: largest leg lean (rad from vertical) a landing is planned from; a measured touch-down beyond it is
+#: planned from this lean
+MAX_TOUCHDOWN_LEAN = math.radians(45.0)
 
 
 @dataclass
 class MeasuredState:
-    """Floating-base state at a contact event (world frame, SI units)."""
+    """Floating-base state at a contact event (world frame, SI units); ``support_center`` is the
+    centre of the feet's contact points (the FSLIP's foot), None where it is not known."""
     t: float
     com: np.ndarray
     com_velocity: np.ndarray
     pitch_momentum: float
     pelvis_pitch: float
     pelvis_pitch_rate: float
+    support_center: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -326,6 +331,10 @@ class FlipSession:
             pass   # the measured touch-down will be solved cold
 
     def _touchdown_state(self, state: Optional[MeasuredState]):
+        """FSLIP state [x, z, ẋ, ż, H] at touch-down: the predicted one (``state`` None: the lift-off
+        mirrored), or the measured velocities and momentum with the COM where it is over the feet
+        (``support_center``; without it, the lift-off's lean mirrored).  The leg keeps the lift-off
+        length r (FSLIP units): x = COM − foot (at most r sin MAX_TOUCHDOWN_LEAN), z = √(r² − x²)."""
         lo = self.result.lift_off
         r = math.hypot(lo["x"], lo["z"])
         b = lo["beta"]
@@ -333,7 +342,11 @@ class FlipSession:
             zd = -math.sqrt(lo["zdot"] ** 2 + 2 * F.G * self.platform)
             return np.array([-r * math.sin(b), r * math.cos(b), lo["xdot"], zd, lo["momentum"]])
         v = np.asarray(state.com_velocity, float)
-        return np.array([-r * math.sin(b), r * math.cos(b), v[0], v[2], float(state.pitch_momentum)])
+        x = -r * math.sin(b)
+        if state.support_center is not None:
+            lim = r * math.sin(MAX_TOUCHDOWN_LEAN)
+            x = min(lim, max(-lim, float(state.com[0]) - float(state.support_center[0])))
+        return np.array([x, math.sqrt(r * r - x * x), v[0], v[2], float(state.pitch_momentum)])
 
     def started(self, t_start: float):
         self.t_start = float(t_start)
@@ -390,7 +403,7 @@ class FlipSession:
         t0 = time.perf_counter()
         self.t_touchdown = float(state.t)
         x0 = self._touchdown_state(state)
-        foot_x = float(state.com[0]) - x0[0]
+        foot_x = float(state.com[0]) - x0[0]        # the measured feet (up to the lean bound)
         fig = dict(self.result.figures)
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0)
@@ -445,6 +458,7 @@ def _blend_to_standing(x0, L_td, L_stand, foot_x, figures, T=1.0):
 
 def _check_state(s: MeasuredState):
     vals = np.r_[np.ravel(s.com), np.ravel(s.com_velocity), s.pitch_momentum, s.pelvis_pitch,
-                 s.pelvis_pitch_rate, s.t]
-    if not np.all(np.isfinite(vals)) or np.size(s.com) != 3 or np.size(s.com_velocity) != 3:
+                 s.pelvis_pitch_rate, s.t, np.ravel(s.support_center if s.support_center is not None else [])]
+    if (not np.all(np.isfinite(vals)) or np.size(s.com) != 3 or np.size(s.com_velocity) != 3
+            or (s.support_center is not None and np.size(s.support_center) != 3)):
         raise ValueError(f"malformed measured state: {s}")

@@ -37,7 +37,8 @@ def measured_state(ev):
         com_velocity=np.array([ev.com_velocity.x, ev.com_velocity.y, ev.com_velocity.z]),
         pitch_momentum=ev.centroidal_pitch_momentum,
         pelvis_pitch=pitch,
-        pelvis_pitch_rate=ev.pelvis_twist.angular.y)
+        pelvis_pitch_rate=ev.pelvis_twist.angular.y,
+        support_center=np.array([ev.support_center.x, ev.support_center.y, ev.support_center.z]))
 
 
 class PlannerNode:
