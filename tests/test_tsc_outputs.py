@@ -65,3 +65,29 @@ def test_momentum_outputs_match_definitions(ctl):
     mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, fw, w, 0)   # world frame
     I_axis = sim.model.body_inertia[fw][1]
     assert ctl.o_Hfw.evaluate(ctl.dyn)[0][0] == pytest.approx(I_axis * w[1], rel=1e-9, abs=1e-9)
+
+
+def test_foot_pitch_is_the_foot_line_angle_with_a_gradient_at_vertical(ctl):
+    """toe pitch = atan2(z_toe - z_heel, x_toe - x_heel): the standing foot gives ~0; the robot pitched
+    forward by 80 deg (a foot near vertical, as a frontflip's held foot is at T1) gives ~-80 deg, and the output still has a full gradient
+    there (the sine it replaced had 1/6 of it: cos 80 deg)."""
+    from cassie_flip_sim.simulator import Simulator
+    from tsc_controller import StateConverter
+    sim = Simulator()
+    q, v = StateConverter(ctl.dyn).from_simulator(sim)
+    dyn, o = ctl.dyn, ctl.o_toe[0]
+    dyn.update(q, v)
+    y0, J0 = o.evaluate(dyn)[:2]
+    assert abs(float(y0[0])) < np.radians(3)
+    qr = q.copy()
+    R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+    quat = pin.Quaternion(pin.utils.rpyToMatrix(0.0, np.radians(80.0), 0.0) @ R)
+    qr[3:7] = [quat.x, quat.y, quat.z, quat.w]
+    dyn.update(qr, v)
+    y1, J1 = o.evaluate(dyn)[:2]
+    P, _, _ = dyn.point_lists()
+    t, h = o._idx[0]
+    line = np.asarray(P[t]) - np.asarray(P[h])
+    assert float(y1[0]) == pytest.approx(np.arctan2(line[2], line[0]), abs=1e-9)
+    assert float(y1[0]) == pytest.approx(float(y0[0]) - np.radians(80.0), abs=np.radians(2))   # nose down: toe down
+    assert np.linalg.norm(J1) == pytest.approx(np.linalg.norm(J0), rel=0.05)

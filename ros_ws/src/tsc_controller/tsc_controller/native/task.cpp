@@ -395,24 +395,33 @@ private:
     }
   }
 
-  // outputs.FootPitch: i = (toe, heel) point pairs, f = foot lengths
+  // outputs.FootPitch: i = (toe, heel) point pairs; atan2(z_toe - z_heel, x_toe - x_heel)
   void foot_pitch(const TickTerms & t, const Spec & s)
   {
     const long np = long(s.i.size()) / 2, row = s.row;
     const double k = 1.0 / double(np);
-    double y = 0.0, dr = 0.0, vel = 0.0;
+    double y = 0.0, drift = 0.0, vel = 0.0;
     for (long j = 0; j < np; ++j)
     {
       const long to = s.i[2 * j], he = s.i[2 * j + 1];
-      const double ell = s.f[j];
-      y += (t.P(to, 2) - t.P(he, 2)) / ell;
-      dr += (t.pt_rows(3 * to + 2, nv_) - t.pt_rows(3 * he + 2, nv_)) / ell;
-      vel += (t.pdot(to, 2) - t.pdot(he, 2)) / ell;
-      add_point_row(row, to, 2, k / ell, t);
-      add_point_row(row, he, 2, -k / ell, t);
+      const double b = t.P(to, 0) - t.P(he, 0), a = t.P(to, 2) - t.P(he, 2);
+      const double bd = t.pdot(to, 0) - t.pdot(he, 0), ad = t.pdot(to, 2) - t.pdot(he, 2);
+      const double rho2 = a * a + b * b;
+      const double ga = b / rho2, gb = -a / rho2;
+      vel += ga * ad + gb * bd;
+      const double s2 = 2.0 * (a * ad + b * bd);
+      const double dga = (bd * rho2 - b * s2) / (rho2 * rho2), dgb = (-ad * rho2 + a * s2) / (rho2 * rho2);
+      const double az = t.pt_rows(3 * to + 2, nv_) - t.pt_rows(3 * he + 2, nv_);
+      const double ax = t.pt_rows(3 * to, nv_) - t.pt_rows(3 * he, nv_);
+      drift += ga * az + gb * ax + dga * ad + dgb * bd;
+      y += std::atan2(a, b);
+      add_point_row(row, to, 0, k * gb, t);
+      add_point_row(row, to, 2, k * ga, t);
+      add_point_row(row, he, 0, -k * gb, t);
+      add_point_row(row, he, 2, -k * ga, t);
     }
     y_[row] = k * y;
-    drift_[row] = k * dr;
+    drift_[row] = k * drift;
     ydot_[row] = k * vel;
   }
 
