@@ -8,7 +8,7 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
-        [--distance 0]
+        [--distance 0] [--platform 0 | --ground-offset 0]
 
 (defaults: the somersault robot of the README and the 15 start times of the README's tally)
 """
@@ -22,25 +22,29 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "scripts"))
+from flip_tools.flip_request import request_distance  # noqa: E402
 START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
 EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
 
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
-        distance: float = 0.0) -> dict:
+        distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0) -> dict:
     sys.path.insert(0, str(REPO / "tests"))
     import numpy as np
 
     import offline_flip as of
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_flip_sim.model import Scenario, export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller import Controller
     from tsc_controller.domains import config_overrides
-    sim = Simulator(motor_speed_scale=scale, flywheel_torque=torque)
+    scenario = (Scenario.platform(platform) if platform else
+                Scenario.raised_landing(ground_offset) if ground_offset else Scenario.flat())
+    sim = Simulator(scenario=scenario, motor_speed_scale=scale, flywheel_torque=torque)
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
                      **config_overrides(controller))
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex,
-               forward_distance=distance, motor_speed_scale=scale, flywheel_torque=torque)
+               forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque)
     ev = r["events"]
     lo = next((t for k, t in ev if k == 0), None)
     td = next((t for k, t in ev if k == 1 and lo is not None and t > lo), None)
@@ -65,19 +69,27 @@ def main() -> int:
     ap.add_argument("--motor-speed-scale", type=float, default=3.0)
     ap.add_argument("--flywheel-torque", type=float, default=260.0)
     ap.add_argument("--apex", type=float, default=1.3)
-    ap.add_argument("--distance", type=float, default=0.0, help="forward distance of the request (m; flip A: 1.0)")
+    ap.add_argument("--distance", type=float, default=None,
+                    help="forward distance of the request (m; flip A: 1.0; default 0, or flip's 0.6 with --platform)")
+    ap.add_argument("--platform", type=float, default=0.0, help="take off from a platform this high (m; flip C: 0.5)")
+    ap.add_argument("--ground-offset", type=float, default=0.0,
+                    help="landing ground this much higher than the planner is told (m; flip D: 0.1)")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
+    if a.platform and a.ground_offset:
+        ap.error("choose --platform or --ground-offset, not both")
+    a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
     from tsc_controller.domains import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
-                            a.distance)
+                            a.distance, a.platform, a.ground_offset)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "
-          f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, {a.seconds} s each, controller {a.controller or '{}'}")
+          f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
+          f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
     print("| flip | start s | landed | fell at s | flight s | touch-down rotation deg | axis tilt deg |")
     print("|------|---------|--------|-----------|----------|-------------------------|---------------|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731

@@ -6,8 +6,9 @@ flip fits its flight time; with the 195 N*m flywheel the frontflip's planned tur
 flywheel saturates and the body over-rotates or the legs fold).
 
 Measured offline (scripts/bench_landings.py, 15 start times, 0.3 ... 3.6 s): the backflip lands from
-15, the frontflip from 11 (with the earlier landing settings, catch_decel 15 and landing_moment 12: 11
-and 5; without the flight's flywheel-axis output as well, DEFAULT_GAINS["axis"]: 5 and 1).
+15, the frontflip from 15 (with the sine toe output of before: 15 and 11; with the earlier landing
+settings, catch_decel 15 and landing_moment 12, as well: 11 and 5; without the flight's flywheel-axis
+output too, DEFAULT_GAINS["axis"]: 5 and 1).
 The start time below lands both; the tests guard that the pipeline keeps doing so."""
 import math
 
@@ -92,17 +93,23 @@ def test_frontflip_lands_and_stands():
     assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)                        # one whole turn, forwards
 
 
-def test_bench_landings_reports_a_flip(tmp_path):
+@pytest.mark.parametrize("args, kind, flight_min, turn", [
+    ((), "backflip", 0.45, -360.0),
+    # flip C: off a 0.5 m platform, `flip run`'s 0.6 m forward distance; the drop lengthens the flight
+    (("--platform", "0.5", "--apex", "1.2"), "frontflip", 0.60, 349.0)])
+def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
     """scripts/bench_landings.py (the offline landing-rate table) runs a flip and reports its touch-down."""
     import subprocess
     import sys
     from pathlib import Path
     script = Path(__file__).resolve().parents[1] / "scripts" / "bench_landings.py"
-    r = subprocess.run([sys.executable, str(script), "--kinds", "backflip", "--starts", "0.5", "--seconds", "2.3",
-                        "--jobs", "1"], capture_output=True, text=True, timeout=600)
+    r = subprocess.run([sys.executable, str(script), "--kinds", kind, "--starts", "0.5", "--seconds", "2.45",
+                        "--jobs", "1", *args], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
-    row = next(ln for ln in r.stdout.splitlines() if ln.startswith("| backflip | 0.50 |"))
+    row = next(ln for ln in r.stdout.splitlines() if ln.startswith(f"| {kind} | 0.50 |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert float(cells[4]) > 0.45                                   # the flight
-    assert float(cells[5]) == pytest.approx(-360.0, abs=10.0)       # one turn at touch-down
-    assert r.stdout.splitlines()[-1].startswith('{"backflip": ')
+    assert float(cells[4]) > flight_min                             # the flight
+    assert float(cells[5]) == pytest.approx(turn, abs=10.0)         # one turn at touch-down
+    assert r.stdout.splitlines()[-1].startswith(f'{{"{kind}": ')
+    if args:
+        assert "distance 0.6 m, platform 0.5 m" in r.stdout
