@@ -176,7 +176,9 @@ DEFAULT_GAINS = {
     # up (42 with the sine output FootPitch was before).  Measured offline (scripts/bench_landings.py,
     # its 15 start times and 15 others, 0.35 ... 3.45 s; backflips / frontflips landed):
     # (1, 100, 20) 15 / 13 and 15 / 14; (10, 400, 40) 15 / 12; (10, 900, 60) 15 / 15 and 15 / 14,
-    # toes 13 deg up at touch-down
+    # toes 13 deg up at touch-down.  It trades against flip C (--platform 0.5 --apex 1.2, 15 start
+    # times): landed 9 with (1, 100, 20), 5 with (10, 900, 60) (3-6 with the gains between; 4 with the
+    # sine); flip D (--ground-offset 0.1): 13 and 15 (11 with the sine)
     "toe_pitch": (10.0, 900.0, 60.0),
     "swing": (10.0, 400.0, 40.0),
     "pitch": (10.0, 100.0, 20.0),
