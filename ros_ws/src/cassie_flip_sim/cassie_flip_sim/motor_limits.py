@@ -41,11 +41,15 @@ class MotorLimits:
         return MotorLimits(tuple(m.joint for m in motors),
                            np.array([m.torque_limit for m in motors], float), w0)
 
+    def __post_init__(self):
+        # 1/ω₀, 0 where the no-load speed is inf: bounds() runs twice a step (simulator, controller)
+        object.__setattr__(self, "_inv_w0", 1.0 / np.asarray(self.no_load_speed, float))
+
     def bounds(self, motor_velocities) -> Tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of the joint-side torques at the given joint-side motor velocities (rad/s)."""
         w = np.asarray(motor_velocities, float)
-        inv_w0 = 1.0 / self.no_load_speed          # 0 where the no-load speed is inf
-        avail = self.torque_limit * np.clip(1.0 - np.abs(w) * inv_w0, 0.0, 1.0)
+        # 1 - |w|/ω₀ <= 1 already; np.maximum, not np.clip (3x the cost for 11 numbers)
+        avail = self.torque_limit * np.maximum(1.0 - np.abs(w) * self._inv_w0, 0.0)
         ub = np.where(w > 0, avail, self.torque_limit)
         lb = np.where(w < 0, -avail, -self.torque_limit)
         return lb, ub
