@@ -57,6 +57,17 @@ def _rows_jacobian(dyn, rows, coef):
     return np.array([coef]) @ dyn.Jp.reshape(-1, dyn.nv)[rows]
 
 
+def _atan2_rates(u, w, ud, wd):
+    """Angle atan2(u, w) of a planar vector (u, w) moving at (ud, wd), with what an angle output needs:
+    the gradient (gu, gw) = d angle / d(u, w), the rate gu ud + gw wd, and the velocity part of its
+    second derivative, d/dt(gu) ud + d/dt(gw) wd (the drift adds gu, gw times the (u, w) drifts)."""
+    rho2 = u * u + w * w
+    gu, gw = w / rho2, -u / rho2
+    s2 = 2.0 * (u * ud + w * wd)
+    dgu, dgw = (wd * rho2 - w * s2) / rho2 ** 2, (-ud * rho2 + u * s2) / rho2 ** 2
+    return math.atan2(u, w), gu, gw, gu * ud + gw * wd, dgu * ud + dgw * wd
+
+
 def _scalars(y, drift, ydot):
     """(y, drift, ydot) of a 1-dim output as (1,) arrays (views of one array)."""
     a = np.array([y, drift, ydot])
@@ -174,16 +185,12 @@ class LegAngle(Output):
         beta = bdot = drift = 0.0
         coef = []
         for f, h in self._idx:
-            x, z = P[f][0] - P[h][0], -(P[f][2] - P[h][2])
-            rho2 = x * x + z * z
-            gx, gz = z / rho2, -x / rho2             # d beta / d(x, z)
-            xd, zd = V[f][0] - V[h][0], -(V[f][2] - V[h][2])
-            bdot += gx * xd + gz * zd
-            # second-order term: d/dt(gx) xd + d/dt(gz) zd
-            dgx = (zd * rho2 - z * 2 * (x * xd + z * zd)) / rho2 ** 2
-            dgz = (-xd * rho2 + x * 2 * (x * xd + z * zd)) / rho2 ** 2
-            drift += gx * (A[f][0] - A[h][0]) - gz * (A[f][2] - A[h][2]) + dgx * xd + dgz * zd
-            beta += math.atan2(x, z)
+            # (x, z) = hip->foot, z measured downwards
+            ang, gx, gz, rate, curv = _atan2_rates(P[f][0] - P[h][0], -(P[f][2] - P[h][2]),
+                                                   V[f][0] - V[h][0], -(V[f][2] - V[h][2]))
+            beta += ang
+            bdot += rate
+            drift += gx * (A[f][0] - A[h][0]) - gz * (A[f][2] - A[h][2]) + curv
             coef += [k * gx, -k * gz, -k * gx, k * gz]     # J = gx J_rx - gz J_rz
         y, drift, ydot = _scalars(k * beta, k * drift, k * bdot)
         return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot
@@ -305,15 +312,12 @@ class FootPitch(Output):
         y = drift = vel = 0.0
         coef = []
         for t, h in self._idx:
-            b, a = P[t][0] - P[h][0], P[t][2] - P[h][2]          # run, rise of the foot line
-            bd, ad = V[t][0] - V[h][0], V[t][2] - V[h][2]
-            rho2 = a * a + b * b
-            ga, gb = b / rho2, -a / rho2                          # d angle / d(a, b)
-            vel += ga * ad + gb * bd
-            s2 = 2.0 * (a * ad + b * bd)
-            dga, dgb = (bd * rho2 - b * s2) / rho2 ** 2, (-ad * rho2 + a * s2) / rho2 ** 2
-            drift += ga * (A[t][2] - A[h][2]) + gb * (A[t][0] - A[h][0]) + dga * ad + dgb * bd
-            y += math.atan2(a, b)
+            # (rise, run) of the heel->toe line
+            ang, ga, gb, rate, curv = _atan2_rates(P[t][2] - P[h][2], P[t][0] - P[h][0],
+                                                   V[t][2] - V[h][2], V[t][0] - V[h][0])
+            y += ang
+            vel += rate
+            drift += ga * (A[t][2] - A[h][2]) + gb * (A[t][0] - A[h][0]) + curv
             coef += [k * gb, k * ga, -k * gb, -k * ga]            # rows: toe x, toe z, heel x, heel z
         y, drift, ydot = _scalars(k * y, k * drift, k * vel)
         return y, _rows_jacobian(dyn, self._rows, coef), drift, ydot

@@ -41,6 +41,22 @@ namespace
     long dim, row;   // rows in the stacked task
   };
 
+  // outputs._atan2_rates: angle atan2(u, w) of a planar vector moving at (ud, wd), its gradient
+  // (gu, gw), its rate, and the velocity part of its second derivative
+  struct Atan2Rates
+  {
+    double angle, gu, gw, rate, curv;
+  };
+
+  Atan2Rates atan2_rates(double u, double w, double ud, double wd)
+  {
+    const double rho2 = u * u + w * w;
+    const double gu = w / rho2, gw = -u / rho2;
+    const double s2 = 2.0 * (u * ud + w * wd);
+    const double dgu = (wd * rho2 - w * s2) / (rho2 * rho2), dgw = (-ud * rho2 + u * s2) / (rho2 * rho2);
+    return {std::atan2(u, w), gu, gw, gu * ud + gw * wd, dgu * ud + dgw * wd};
+  }
+
   Kind kind_of(const std::string & s)
   {
     static const char * names[] = {"centroidal", "flywheel", "leg_length", "leg_angle", "com",
@@ -316,21 +332,18 @@ private:
     for (long j = 0; j < np; ++j)
     {
       const long f = s.i[2 * j], h = s.i[2 * j + 1];
-      const double x = t.P(f, 0) - t.P(h, 0), z = -(t.P(f, 2) - t.P(h, 2));
-      const double rho2 = x * x + z * z;
-      const double gx = z / rho2, gz = -x / rho2;
-      const double xd = t.pdot(f, 0) - t.pdot(h, 0), zd = -(t.pdot(f, 2) - t.pdot(h, 2));
-      bdot += gx * xd + gz * zd;
-      const double dgx = (zd * rho2 - z * 2 * (x * xd + z * zd)) / (rho2 * rho2);
-      const double dgz = (-xd * rho2 + x * 2 * (x * xd + z * zd)) / (rho2 * rho2);
+      // (x, z) = hip->foot, z measured downwards
+      const Atan2Rates r = atan2_rates(t.P(f, 0) - t.P(h, 0), -(t.P(f, 2) - t.P(h, 2)),
+                                       t.pdot(f, 0) - t.pdot(h, 0), -(t.pdot(f, 2) - t.pdot(h, 2)));
       const double ax = t.pt_rows(3 * f, nv_) - t.pt_rows(3 * h, nv_);
       const double az = t.pt_rows(3 * f + 2, nv_) - t.pt_rows(3 * h + 2, nv_);
-      drift += gx * ax - gz * az + dgx * xd + dgz * zd;
-      beta += std::atan2(x, z);
-      add_point_row(row, f, 0, k * gx, t);
-      add_point_row(row, f, 2, -k * gz, t);
-      add_point_row(row, h, 0, -k * gx, t);
-      add_point_row(row, h, 2, k * gz, t);
+      beta += r.angle;
+      bdot += r.rate;
+      drift += r.gu * ax - r.gw * az + r.curv;
+      add_point_row(row, f, 0, k * r.gu, t);
+      add_point_row(row, f, 2, -k * r.gw, t);
+      add_point_row(row, h, 0, -k * r.gu, t);
+      add_point_row(row, h, 2, k * r.gw, t);
     }
     y_[row] = k * beta;
     drift_[row] = k * drift;
@@ -404,21 +417,18 @@ private:
     for (long j = 0; j < np; ++j)
     {
       const long to = s.i[2 * j], he = s.i[2 * j + 1];
-      const double b = t.P(to, 0) - t.P(he, 0), a = t.P(to, 2) - t.P(he, 2);
-      const double bd = t.pdot(to, 0) - t.pdot(he, 0), ad = t.pdot(to, 2) - t.pdot(he, 2);
-      const double rho2 = a * a + b * b;
-      const double ga = b / rho2, gb = -a / rho2;
-      vel += ga * ad + gb * bd;
-      const double s2 = 2.0 * (a * ad + b * bd);
-      const double dga = (bd * rho2 - b * s2) / (rho2 * rho2), dgb = (-ad * rho2 + a * s2) / (rho2 * rho2);
+      // (rise, run) of the heel->toe line
+      const Atan2Rates r = atan2_rates(t.P(to, 2) - t.P(he, 2), t.P(to, 0) - t.P(he, 0),
+                                       t.pdot(to, 2) - t.pdot(he, 2), t.pdot(to, 0) - t.pdot(he, 0));
       const double az = t.pt_rows(3 * to + 2, nv_) - t.pt_rows(3 * he + 2, nv_);
       const double ax = t.pt_rows(3 * to, nv_) - t.pt_rows(3 * he, nv_);
-      drift += ga * az + gb * ax + dga * ad + dgb * bd;
-      y += std::atan2(a, b);
-      add_point_row(row, to, 0, k * gb, t);
-      add_point_row(row, to, 2, k * ga, t);
-      add_point_row(row, he, 0, -k * gb, t);
-      add_point_row(row, he, 2, -k * ga, t);
+      y += r.angle;
+      vel += r.rate;
+      drift += r.gu * az + r.gw * ax + r.curv;
+      add_point_row(row, to, 0, k * r.gw, t);
+      add_point_row(row, to, 2, k * r.gu, t);
+      add_point_row(row, he, 0, -k * r.gw, t);
+      add_point_row(row, he, 2, -k * r.gu, t);
     }
     y_[row] = k * y;
     drift_[row] = k * drift;
