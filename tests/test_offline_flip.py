@@ -93,6 +93,27 @@ def test_frontflip_lands_and_stands():
     assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)                        # one whole turn, forwards
 
 
+def test_forward_frontflip_lands_and_stands():
+    """Flip A (1 m forward, apex 1.2 m): it touches down at ~1.1 m/s forward with its feet only
+    ~0.14 m ahead of the COM.  The own landing's light H_pitch weight at first lets the flywheel take
+    the moment of the braking ground force; with the full weight from touch-down (the landing before)
+    it fell from each of 5 start times (0.3, 0.5, 0.7, 1.1, 1.6 s)."""
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    x0 = float(sim.com_position()[0])
+    r = of.run("frontflip", seconds=15.5, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.2,
+               forward_distance=1.0, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ev, t, pitch = r["events"], r["t"], r["pitch"]
+    lo = next(tt for k, tt in ev if k == 0)
+    td = next(tt for k, tt in ev if k == 1 and tt > lo)
+    assert td - lo > 0.4
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert [k for k, tt in ev if tt > td] == []                     # no rebound off the ground
+    of.assert_stands(sim, ctl, z_stand)
+    assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)
+    assert float(sim.com_position()[0]) - x0 > 0.8                  # asked: 1.0 m
+
+
 @pytest.mark.parametrize("args, kind, flight_min, turn", [
     ((), "backflip", 0.45, -360.0),
     # flip C: off a 0.5 m platform, `flip run`'s 0.6 m forward distance; the drop lengthens the flight

@@ -27,7 +27,7 @@ def run_flip(sign, T, t_end=6.0, axis_output=True, **config):
     w0 = launch(sim, sign, T, 0.1)
     ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
     ctl.set_reference(flight_reference(sign, w0, T))
-    H_td, fell = None, None
+    H_td, fell, trace = None, None, []
     for k in range(int(t_end / sim.timestep)):
         for ev in sim.pop_events():
             ctl.on_contact_event(int(ev.kind), ev.time)
@@ -35,11 +35,13 @@ def run_flip(sign, T, t_end=6.0, axis_output=True, **config):
                 H_td = sim.centroidal_pitch_momentum()
         q, v = sc.from_simulator(sim)
         u, _ = ctl.compute(q, v, sim.time)
+        # (time, domain, H_pitch weight of the own landing, centroidal pitch momentum)
+        trace.append((sim.time, int(ctl.domain), ctl.o_H_land.weight, sim.centroidal_pitch_momentum()))
         sim.step(u)
         if k % 20 == 0 and sim.body_contacts():
             fell = sim.time
             break
-    return dict(sim=sim, ctl=ctl, z_stand=z_stand, H_td=H_td, fell=fell)
+    return dict(sim=sim, ctl=ctl, z_stand=z_stand, H_td=H_td, fell=fell, trace=trace)
 
 
 # The backflip runs with the flight's flywheel-axis output off (DEFAULT_GAINS["axis"]) and the landing
@@ -57,3 +59,22 @@ def test_flip_lands_and_stands(sign, T, config):
     assert r["H_td"] is not None and abs(r["H_td"]) > 15.0      # touched down with the flip's momentum
     assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
     assert_stands(sim, ctl, r["z_stand"])                        # ... and the flywheel's momentum is gone
+
+
+def test_own_landing_lets_the_flywheel_take_the_impact_then_removes_the_momentum():
+    """The own landing starts with a light H_pitch weight (the flywheel may take the moment of the
+    braking ground forces), back to its ``gains`` weight after ``landing_H_ramp``, and lasts until
+    the momentum is below ``landing_H_done`` (the standing that follows removes it no slower)."""
+    r = run_flip(1, 0.6)
+    ctl, tr = r["ctl"], r["trace"]
+    cfg = ctl.cfg
+    landing = [x for x in tr if x[1] == Domain.LANDING]
+    assert landing, "never landed"
+    t_td = landing[0][0]
+    assert landing[0][2] == pytest.approx(cfg.landing_H_weight, abs=1e-3)
+    assert all(x[2] >= cfg.landing_H_weight - 1e-9 for x in landing)
+    late = [x[2] for x in landing if x[0] > t_td + cfg.landing_H_ramp]
+    assert late and all(w == pytest.approx(cfg.gains["H_pitch"][0]) for w in late)
+    end = next(i for i, x in enumerate(tr) if x[0] > t_td and x[1] == Domain.STANDING)
+    assert abs(tr[end - 1][3]) <= cfg.landing_H_done + 0.5        # (sim and controller differ a little)
+    assert r["fell"] is None

@@ -151,3 +151,33 @@ def test_cop_margin_per_solve(controllers):
     assert len(share_margin) >= 20 and len(share_free) >= 20
     assert min(share_margin) >= 0.2 - 1e-4
     assert min(share_free) < 0.2
+
+
+def test_a_weight_changed_between_ticks_is_used(controllers):
+    """An output's weight may change from tick to tick (the own landing's H_pitch weight rises after
+    touch-down): the cached task must solve with the new weight, i.e. give the torques of a controller
+    built with that weight, and not those of the weight it first saw."""
+    from tsc_controller.domains import DEFAULT_GAINS
+    ctl = controllers["daqp"]
+    light = Controller(export_mjcf(), solver="daqp", gains=dict(DEFAULT_GAINS, H_pitch=(0.05, 10.0, 0.0)))
+    rng = np.random.default_rng(5)
+    differ = 0
+    for _ in range(5):
+        q, v = random_state(ctl.dyn, rng, True)
+        v *= 0.5
+        for c in (ctl, light):
+            c.dyn.update(q, v)
+        lb, ub = ctl.limits.bounds(v[ctl.dyn.motor_v])
+        outs, des = _random_task(ctl, rng)
+        w0 = ctl.o_H.weight
+        u_default = ctl.tsc.solve(outs, des, True, lb, ub).u        # the task is cached with weight w0
+        try:
+            ctl.o_H.weight = 0.05
+            u_changed = ctl.tsc.solve(outs, des, True, lb, ub).u
+        finally:
+            ctl.o_H.weight = w0
+        u_light = light.tsc.solve(light.ground_outputs, des, True, lb, ub).u
+        assert np.allclose(u_changed, u_light, atol=1e-6 * max(1.0, np.abs(u_light).max()))
+        differ += not np.allclose(u_default, u_light, atol=1e-3)
+        assert np.allclose(ctl.tsc.solve(outs, des, True, lb, ub).u, u_default, atol=1e-6 * max(1.0, np.abs(u_default).max()))
+    assert differ >= 3                      # the weight matters for these tasks

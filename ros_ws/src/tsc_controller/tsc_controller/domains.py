@@ -23,13 +23,17 @@ without a command: JUMPING without lift-off past its end (+ ``grace``; + up to `
 COM still rises fast) falls back to STANDING, FLIGHT
 without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
 the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs.
+The controller's own landing (after a somersault) starts with a light H_pitch weight that rises to its
+standing value (``landing_H_weight``, ``landing_H_ramp``): the flywheel takes the moment of the ground
+force that stops the body's forward speed, and the momentum is removed afterwards; the landing lasts
+until it has been (``landing_H_done``).
 A BODY_CONTACT (a fall) latches a damping-only command (``fall_damping``).
 
 Per-foot contact (LANDING, STANDING): a foot that has come off the ground (or rocked onto toe or heel)
 while its leg is unloaded loses its contact rows in the QP and gets a swing output (toe and heel back
 to where it stood, flat, aimed slightly below the ground) until it is down again; with both feet off,
 both keep their contact rows (a rebound).  The fallback landing lasts until its own profiles end
-(leg catch and rise, momentum removal) and moves the COM target against the centre-of-pressure offset
+(leg catch and rise, momentum removal) and the momentum is out, and moves the COM target against the centre-of-pressure offset
 the momentum removal needs, and with the feet where they stand now.
 """
 from __future__ import annotations
@@ -253,6 +257,24 @@ class ControllerConfig:
     # start times 13 / 3 -> 15 / 12; alone, decel 25: 12 / 8, moment 8: 15 / 7, moment 6: 14 / 8
     catch_decel: float = 25.0
     landing_moment: float = 8.0
+    # The own LANDING's H_pitch weight starts at landing_H_weight and rises to its ``gains`` value over
+    # landing_H_ramp (s, quintic).  A touch-down with forward speed is stopped by a backward ground
+    # force below the COM, whose moment turns the body forward unless the flywheel takes it: with the
+    # full weight from touch-down the QP held H_pitch to the removal profile instead and the COM ran
+    # on over the toes (flip A: 1.1 m/s, feet 0.14 m ahead of the COM; the COM ran 0.36 m, the
+    # flywheel then spun up to hold the body, it rebounded and fell).  With 0.1 the flywheel takes
+    # 35 -> 80 kg*m^2/s and the COM stops over the feet.  Measured offline (scripts/bench_landings.py,
+    # 15 start times; A: --distance 1.0 --apex 1.2, 12 s; C: --platform 0.5 --apex 1.2), landed:
+    #   weight 1 (before):  backflip 15, frontflip 15, A 0 of 5, C 5, D 15
+    #   0.1, ramp 1.0 s:    15, 15, A 10, C 15, D 15 (15 other start times: 15, 14; A 13; C 15)
+    #   0.2 / 0.05:         14 / 15, 15 / 13, A 1 / 10, C 9 / 10;  ramp 0.5 / 1.5 s: B 12 / 15, C 8 / 14, A 0 / 8
+    landing_H_weight: float = 0.1
+    landing_H_ramp: float = 1.0
+    # kg*m^2/s: the own landing lasts until |H_pitch| is below this (and its profiles have ended).
+    # After flip A the flywheel holds ~80 kg*m^2/s, which the removal at landing_moment takes ~12 s to
+    # take out; a landing ended by its clock with 56 left handed it to STANDING, and the robot fell
+    # (A: 10 -> 11 of 15 start times at 9 s of simulation)
+    landing_H_done: float = 2.0
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
@@ -397,6 +419,8 @@ class Controller:
         self.o_com = _mk(O.ComPosition, "com", g, axes=(0, 1))
         self.o_pel = _mk(O.PelvisOrientation, "pelvis", g, axes=("roll", "pitch", "yaw"))
         self.ground_outputs = [self.o_H, self.o_L, self.o_com, self.o_pel]
+        self.o_H_land = _mk(O.CentroidalPitchMomentum, "H_pitch", g)      # weight set per tick
+        self.own_landing_outputs = [self.o_H_land, self.o_L, self.o_com, self.o_pel]
         gj = {**g, **cfg.jumping_gains}
         self.jumping_outputs = [_mk(O.CentroidalPitchMomentum, "H_pitch", gj), _mk(O.LegLength, "L", gj),
                                 _mk(O.ComPosition, "com", gj, axes=(0, 1)),
@@ -487,10 +511,12 @@ class Controller:
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
             r = self.refs.get(Domain.LANDING)
-            # the fallback landing ends when its own profiles have (leg catch + rise, momentum removal),
-            # not after blend_time: re-anchoring the standing targets mid-catch throws the robot
+            # the fallback landing ends when its own profiles have (leg catch + rise, momentum removal)
+            # and the momentum is out (landing_H_done), not after blend_time: re-anchoring the standing
+            # targets mid-catch throws the robot
             done = (r.start_time + r.duration < t if r is not None
-                    else self._stand is not None and t - self._stand["t0"] > self._stand["T_done"])
+                    else self._stand is not None and t - self._stand["t0"] > self._stand["T_done"]
+                    and abs(self._stand.get("H_now", 0.0)) <= self.cfg.landing_H_done)
             if done:
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
@@ -589,6 +615,7 @@ class Controller:
         lag asked (180 N*m), the COM was driven off the feet and the robot fell 1.8 s after landing."""
         kp = self.o_H.kp
         H_now = float(self.o_H.evaluate(self.dyn)[0][0])
+        self._stand["H_now"] = H_now
         ramp = min(1.0, max(dt, 0.0) / self.cfg.moment_ramp) if self.cfg.moment_ramp > 0 else 1.0
         M = self.cfg.landing_moment * ramp
         if kp * abs(H_now) >= M:
@@ -618,7 +645,15 @@ class Controller:
             put("pelvis", 0, "phi_roll")
             put("pelvis", 1, "phi_pitch")
             put("pelvis", 2, "phi_yaw")
-        outs = self.jumping_outputs if self.domain == Domain.JUMPING else self.ground_outputs
+        if self.domain == Domain.JUMPING:
+            outs = self.jumping_outputs
+        elif self.domain == Domain.LANDING and ref is None:
+            outs = self.own_landing_outputs
+            w1, w0, T = self.o_H.weight, self.cfg.landing_H_weight, self.cfg.landing_H_ramp
+            x = min(max((t - self._stand["t0"]) / T, 0.0), 1.0) if T > 0 else 1.0
+            self.o_H_land.weight = w0 + (w1 - w0) * x * x * x * (10 - 15 * x + 6 * x * x)
+        else:
+            outs = self.ground_outputs
         return outs, [des[o.name] for o in outs]
 
     def _flight_task(self, t):

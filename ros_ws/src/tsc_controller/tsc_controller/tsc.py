@@ -161,21 +161,31 @@ SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP}
 
 
 class _Task:
-    """Per output list (cached): stacked weights and gains, row slices.  Weights and gains are read when
-    the list is first seen; degree-1 rows get kd = 0 (their command has no velocity term)."""
+    """Per output list (cached): stacked weights and gains, row slices.  Gains are read when the list
+    is first seen, weights whenever one has changed (a weight may vary in time); degree-1 rows get kd = 0 (their command has no velocity term)."""
 
     def __init__(self, outputs, evaluated):
         self.outputs = tuple(outputs)          # keeps the ids of the cache key alive
         self.dims = [ev[1].shape[0] for ev in evaluated]
         self.m = sum(self.dims)
-        self.w, self.kp, self.kd = (
+        self._w, self.kp, self.kd = (
             np.concatenate([np.broadcast_to(np.asarray(g(o), float), (d,)) for o, d in zip(outputs, self.dims)])
             for g in (lambda o: o.weight, lambda o: o.kp, lambda o: o.kd if o.degree == 2 else 0.0))
+        self._weights = tuple(o.weight for o in self.outputs)
         ends = np.cumsum(self.dims).tolist()
         self.slices = [(o.name, slice(e - d, e)) for o, d, e in zip(outputs, self.dims, ends)]
         self.deg1 = [o.degree == 1 for o in outputs]
         self.zeros = [np.zeros(d) for d in self.dims]
         self.native = None
+
+    @property
+    def w(self):
+        """Row weights: re-read when an output's weight has changed (a weight may vary in time)."""
+        ws = tuple(o.weight for o in self.outputs)
+        if ws != self._weights:
+            self._weights = ws
+            self._w = np.concatenate([np.full(d, float(w_)) for w_, d in zip(ws, self.dims)])
+        return self._w
 
     def compile(self, dyn):
         """The compiled task rows of this list (native backend, every output with a compiled form):
