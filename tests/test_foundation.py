@@ -302,6 +302,7 @@ def test_summary_frontflip_landed(tmp_path):
     assert s["peak_motor_torque_nm"]["right_foot"] == pytest.approx(9.0)
     assert s["planner"]["solve_time_s"] == [0.42]
     assert s["checks"]["only_feet_touch_ground"]["ok"] is True       # no BODY_CONTACT event
+    assert s["checks"]["touchdown_on_landing_ground"]["ok"] is True   # the feet came down at z = 0.02
     assert s["tsc_tick_us"]["n"] == s["motor_commands"] and "tsc_tick_us_note" not in s
     assert s["unverified"] == []
     # the pelvis at lift-off and touch-down: a pure pitch flip, nothing picked up off the y axis
@@ -324,6 +325,38 @@ def test_summary_touchdown_state_shows_the_yaw_a_flip_picked_up(tmp_path):
     assert s["touchdown_state"]["rotation_deg"] == pytest.approx(360.0, abs=1.0)
     assert s["touchdown_com_ahead_of_feet_m"] == pytest.approx(-0.2)   # the bag's feet, 0.2 m ahead
     assert s["outcome"] == "landed"         # a diagnostic, not a landing criterion
+
+
+def test_summary_touchdown_elsewhere_than_on_the_landing_ground(tmp_path):
+    """Flip D's landing area is raised to z = 0.1: a flip whose feet came down at the ground it took
+    off from (support centre z = 0.02) did not land on it, however upright it ends."""
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "bag", rotation_deg=360.0, final_z=0.9)
+    s = summarize_bag(tmp_path / "bag", kind="frontflip", landing_ground_z=0.1)
+    assert s["touchdown_support_z_m"] == pytest.approx(0.02)
+    assert s["checks"]["touchdown_on_landing_ground"]["ok"] is False
+    assert s["checks"]["final_height"]["ok"] is True and s["at_rest"] is True
+    assert s["outcome"] == "off_landing_ground"
+    # a bag without a touch-down cannot tell: unknown, not a verdict
+    write_flip_bag(tmp_path / "bag2", contact_events=False, rotation_deg=360.0, final_z=0.9)
+    s2 = summarize_bag(tmp_path / "bag2", kind="frontflip", landing_ground_z=0.1)
+    assert s2["checks"]["touchdown_on_landing_ground"]["ok"] is None
+    assert "touchdown_on_landing_ground" in s2["unverified"]
+
+
+def test_flip_requests_a_distance_that_reaches_the_landing_ground():
+    """A platform flip (C) and a flip onto the raised landing area (D) get the forward distance that
+    takes them off the platform / onto the area unless --distance says otherwise."""
+    from types import SimpleNamespace as NS
+    from cassie_flip_sim.model import Scenario
+    from flip_tools.flip_request import PLATFORM_FLIP_DISTANCE, RAISED_FLIP_DISTANCE, request_distance
+    assert request_distance(NS(distance=None, platform=None, ground_offset=None)) == 0.0
+    assert request_distance(NS(distance=None, platform=0.5, ground_offset=None)) == PLATFORM_FLIP_DISTANCE
+    assert request_distance(NS(distance=None, platform=None, ground_offset=0.1)) == RAISED_FLIP_DISTANCE
+    assert request_distance(NS(distance=0.3, platform=None, ground_offset=0.1)) == 0.3
+    # the heels of a robot that stood with them at x = -0.1 come down past the raised area's edge
+    assert RAISED_FLIP_DISTANCE - 0.1 > Scenario.raised_landing(0.1).landing_start_x
 
 
 def test_summary_body_contact_and_unknown(tmp_path):

@@ -1,5 +1,5 @@
 """What a flip request asks for, from `flip run`'s (or a benchmark's) command line: the forward
-distance, which a platform flip needs even when none is given."""
+distance, which a platform flip and a flip onto the raised landing area need even when none is given."""
 from __future__ import annotations
 
 #: forward distance of a platform flip (--platform) when --distance is not given.  The robot stands
@@ -11,8 +11,19 @@ from __future__ import annotations
 PLATFORM_FLIP_DISTANCE = 0.6
 
 
+#: forward distance of a flip onto the raised landing area (--ground-offset, flip D) when --distance is
+#: not given.  The area begins at x = 0.4 m (cassie_flip_sim Scenario.raised_landing), 0.3 m ahead of
+#: the toes: a flip in place lands on the ground it took off from, below the area, and is not flip D
+#: (measured: identical flights and touch-downs to the plain frontflip's).  After 0.6 m the heels come
+#: down ~0.1 m past the area's edge.
+RAISED_FLIP_DISTANCE = 0.6
+
+
 def request_distance(args) -> float:
-    """Forward distance of the request: --distance, or PLATFORM_FLIP_DISTANCE for a platform flip."""
+    """Forward distance of the request: --distance, or PLATFORM_FLIP_DISTANCE for a platform flip,
+    RAISED_FLIP_DISTANCE for a flip onto the raised landing area (--ground-offset)."""
     if getattr(args, "distance", None) is not None:
         return float(args.distance)
-    return PLATFORM_FLIP_DISTANCE if (getattr(args, "platform", None) or 0.0) > 0.0 else 0.0
+    if (getattr(args, "platform", None) or 0.0) > 0.0:
+        return PLATFORM_FLIP_DISTANCE
+    return RAISED_FLIP_DISTANCE if (getattr(args, "ground_offset", None) or 0.0) > 0.0 else 0.0

@@ -14,13 +14,18 @@ Landed (all must hold; the thresholds are in LANDING_CRITERIA and copied into th
   final tilt (angle of the pelvis z axis from world z) < 20 deg;
   final pelvis height above the landing ground >= 0.6 m;
   at rest: over the last 0.5 s of sim time, |v| < 0.15 m/s and |omega| < 0.5 rad/s;
+  the feet came down on the landing ground: the support centre of the TOUCH_DOWN ContactEvent after
+      the first lift-off (centre of the foot contact spheres) within 0.06 m of the landing ground's
+      height (a flip that came down on the ground it took off from, or short of a raised landing area,
+      fails it); unknown for bags whose ContactEvent has no support_centre;
   no part but the feet touching the ground: no ContactEvent BODY_CONTACT (the sim publishes one
       when a body other than the feet starts touching the terrain; header.frame_id names the
       bodies) after the first lift-off. When the bag cannot tell (no /contact_events, or a
       ContactEvent definition without BODY_CONTACT) the check says "unknown" instead of guessing,
       is listed under "unverified", and the outcome does not depend on it.
 Outcomes: landed | fell (final tilt >= 20 deg or pelvis below 0.6 m) | body_contact (upright at
-the end but another body touched the ground) | under_rotated | over_rotated (upright, rotation
+the end but another body touched the ground) | off_landing_ground (upright, but the feet came down
+elsewhere than on the landing ground) | under_rotated | over_rotated (upright, rotation
 off) | not_at_rest (upright, rotation right, still moving) | no_data (no /odom).
 For `stand`/`sim` runs: standing | fell.
 
@@ -48,6 +53,7 @@ LANDING_CRITERIA = {
     "rest_window_s": 0.5,
     "rest_max_speed_mps": 0.15,
     "rest_max_angular_speed_radps": 0.5,
+    "touchdown_ground_tolerance_m": 0.06,
 }
 EXPECTED_ROTATION_DEG = {"frontflip": 360.0, "backflip": -360.0, "hop": 0.0}
 RPM_PER_RADPS = 60.0 / (2.0 * math.pi)
@@ -167,6 +173,7 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
                 # where the COM came down relative to the feet (the simulator's report; older
                 # bags' ContactEvent has no support_center: NaN -> None)
                 s["touchdown_com_ahead_of_feet_m"] = _f(ce["com_pos"][td[0], 0] - ce["support_center"][td[0], 0], 3)
+                s["touchdown_support_z_m"] = _f(ce["support_center"][td[0], 2], 3)
                 s["feet_touchdown_seen"] = True
             else:
                 s["flight_time_s"] = None
@@ -260,6 +267,13 @@ def _event_state(od, t, th, R, w_world, t_event):
             "velocity_mps": [_f(x, 3) for x in v]}
 
 
+def _on_landing_ground(support_z, ground_z, tol):
+    """The touch-down's support centre (feet) at the landing ground's height (within ``tol``)."""
+    if support_z is None:
+        return {"ok": None, "note": "unknown: no touch-down with a support centre in /contact_events"}
+    return {"ok": bool(abs(support_z - ground_z) <= tol), "support_z_m": support_z, "ground_z_m": _f(ground_z, 3)}
+
+
 def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
     C = LANDING_CRITERIA
     t, tsrc = odom_time(od)
@@ -318,6 +332,9 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
         "at_rest": {"ok": at_rest},
         "only_feet_touch_ground": body_contact,
     }
+    if kind not in ("stand", "sim"):
+        checks["touchdown_on_landing_ground"] = _on_landing_ground(s.get("touchdown_support_z_m"), ground_z,
+                                                                   C["touchdown_ground_tolerance_m"])
     if expected is not None:
         checks["rotation"] = {"ok": bool(abs(net - expected) <= C["rotation_tolerance_deg"]),
                               "value_deg": _f(net, 1), "expected_deg": expected}
@@ -332,6 +349,8 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
         s["outcome"] = "fell"
     elif body_contact.get("ok") is False:
         s["outcome"] = "body_contact"
+    elif checks.get("touchdown_on_landing_ground", {}).get("ok") is False:
+        s["outcome"] = "off_landing_ground"
     elif expected is not None and not checks["rotation"]["ok"]:
         s["outcome"] = "under_rotated" if abs(net) < abs(expected) else "over_rotated"
     elif at_rest is not True:
