@@ -182,7 +182,8 @@ DEFAULT_GAINS = {
     # (1, 100, 20) 15 / 13 and 15 / 14; (10, 400, 40) 15 / 12; (10, 900, 60) 15 / 15 and 15 / 14,
     # toes 13 deg up at touch-down.  It trades against flip C (--platform 0.5 --apex 1.2, 15 start
     # times): landed 9 with (1, 100, 20), 5 with (10, 900, 60) (3-6 with the gains between; 4 with the
-    # sine); flip D (--ground-offset 0.1): 13 and 15 (11 with the sine)
+    # sine); --ground-offset 0.1 in place (which came down on the take-off ground below the raised area:
+    # a plain frontflip, not flip D): 13 and 15 (11 with the sine)
     "toe_pitch": (10.0, 900.0, 60.0),
     "swing": (10.0, 400.0, 40.0),
     "pitch": (10.0, 100.0, 20.0),
@@ -265,10 +266,12 @@ class ControllerConfig:
     # flywheel then spun up to hold the body, it rebounded and fell).  With 0.1 the flywheel takes
     # 35 -> 80 kg*m^2/s and the COM stops over the feet.  Measured offline (scripts/bench_landings.py,
     # its 15 start times; A: --distance 1.0 --apex 1.2 --seconds 12; C: --platform 0.5 --apex 1.2),
-    # landed backflips, frontflips, A, C, D:
-    #   weight 1 (before):     15, 15, 0 of 5 (9 s), 5, 15
-    #   0.1 over 1 s (default): 15, 15, 10, 15, 15; on 15 other start times 15, 14, -, 15, 14
-    #   0.2 / 0.05:            14 / 15, 15 / 13, 1 / 10, 9 / 10, -;  ramp 1.5 s: 15, 15, 8, 14, -
+    # landed backflips, frontflips, A, C:
+    #   weight 1 (before):     15, 15, 0 of 5 (9 s), 5
+    #   0.1 over 1 s (default): 15, 15, 10, 15; on 15 other start times 15, 14, -, 15
+    #   0.2 / 0.05:            14 / 15, 15 / 13, 1 / 10, 9 / 10;  ramp 1.5 s: 15, 15, 8, 14
+    # Flip D (--ground-offset 0.1 --apex 1.2, with its 0.6 m forward distance): 12 of 15 (weight 1: 1),
+    # 11 of the 15 others.
     # Flip A still falls late: over 20 s of simulation 10 of the 15 start times and 4 of the 15 others
     # land; the others fall 3-10 s after touch-down, while the flywheel's momentum is being removed
     # (the two traced, one offline and one through the graph, drifted sideways onto one leg).
