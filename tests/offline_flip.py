@@ -41,8 +41,11 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
         for ev in sim.pop_events():
-            log["events"].append((int(ev.kind), ev.time))
-            ctl.on_contact_event(int(ev.kind), ev.time)
+            # stamped like sim_node's ContactEvent: the step at which the event is reported (its state
+            # is that step's), not the onset (a lift-off is reported 20 steps after its onset)
+            t_ev = sim.time
+            log["events"].append((int(ev.kind), t_ev))
+            ctl.on_contact_event(int(ev.kind), t_ev)
             st = measured(sim)
             r = None
             if int(ev.kind) == 0:
@@ -52,8 +55,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 if not landing_reference:
                     r = None
             if r is not None:
-                log["references"].append((ev.time, r))
-                ctl.set_reference(to_sampled(r, ev.time))
+                log["references"].append((t_ev, r))
+                ctl.set_reference(to_sampled(r, t_ev))
         q, v = sc.from_simulator(sim)
         u, info = ctl.compute(q, v, sim.time)
         sim.step(u)

@@ -34,7 +34,7 @@ def robot():
 def backflip():
     sim, ctl = robot()
     z_stand = float(sim.standing_qpos[2])
-    r = of.run("backflip", seconds=8.5, start=0.5, sim=sim, controller=ctl, every=10,
+    r = of.run("backflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10,
                apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     r["z_stand"] = z_stand
     return r
@@ -81,7 +81,7 @@ def test_backflip_lands_and_stands(backflip):
 def test_frontflip_lands_and_stands():
     sim, ctl = robot()
     z_stand = float(sim.standing_qpos[2])
-    r = of.run("frontflip", seconds=8.5, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.3,
+    r = of.run("frontflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.3,
                motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     ev, t, pitch = r["events"], r["t"], r["pitch"]
     lo = next(tt for k, tt in ev if k == 0)
