@@ -99,3 +99,27 @@ def test_drop_lands_and_stands():
     assert min(zs) > z0 - 0.3
     assert zs[-1] == pytest.approx(z0, abs=0.01)
     assert ctl.domain == Domain.STANDING
+
+
+def test_flight_reference_is_sampled_flight_lead_ahead():
+    """The FLIGHT reference is tracked ``flight_lead`` ahead of the time since the lift-off event (the
+    turn ends before the planned touch-down): the desired pelvis pitch at a tick is the reference's
+    value at (t - t_lift_off + flight_lead)."""
+    sim = Simulator()
+    w0 = launch(sim, 1, T_FLIGHT, 0.4)
+    ref = flight_reference(1, w0, T_FLIGHT)
+    sc = None
+    for lead in (0.0, 0.01, 0.05):
+        ctl = Controller(export_mjcf(), flight_lead=lead)
+        sc = sc or StateConverter(ctl.dyn)
+        ctl._enter(Domain.FLIGHT, 0.0)
+        ctl.set_reference(ref)
+        q, v = sc.from_simulator(sim)
+        ctl.dyn.update(q, v)
+        ctl._update_pitch()
+        t = 0.2
+        outs, des = ctl._flight_task(t)
+        k = [o.name for o in outs].index("pitch")
+        want = ref.sample(t + lead)["phi_pitch"]
+        assert des[k].value[0] == pytest.approx(want[0]) and des[k].d_value[0] == pytest.approx(want[1])
+    assert ref.sample(0.25)["phi_pitch"][0] != pytest.approx(ref.sample(0.2)["phi_pitch"][0])

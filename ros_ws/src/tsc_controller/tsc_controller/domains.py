@@ -251,6 +251,15 @@ class ControllerConfig:
     push_rising: float = 1.0          # m/s
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     t1_fraction: float = 0.75
+    # s: the FLIGHT reference is sampled this far ahead of the time since the LIFT_OFF event, so the
+    # turn ends that much before the planned touch-down.  The simulator reports a lift-off 20 steps
+    # (10 ms) after its onset and the planner plans from the state then; a touch-down that comes early
+    # (flip D: the ground 0.1 m higher than planned, 18 ms early) otherwise meets a body still turning
+    # (4.5 rad/s, +348 deg, then +383 deg after it).  Measured offline (scripts/bench_landings.py, 15
+    # start times; D: --ground-offset 0.1 --apex 1.2; A: --distance 1.0 --apex 1.2 --seconds 20),
+    # landed backflips, frontflips, C, A, D: 0 s: 15, 15, 15, 7, 2; 0.01 s: 15, 15, 15, 10, 12;
+    # 0.02 s: D 6
+    flight_lead: float = 0.01
     # catch_decel: m/s^2, leg deceleration of the fallback landing (leg_catch); landing_moment: N*m, mean
     # pitch moment it uses to remove H_pitch.  25 and 8 (were 15 and 12): with 15 / 12 the landings
     # rebounded 0.3-0.8 s after touch-down and drifted off; measured offline (scripts/bench_landings.py,
@@ -666,7 +675,7 @@ class Controller:
     def _flight_task(self, t):
         dyn = self.dyn
         ref = self.refs.get(Domain.FLIGHT)
-        tau = t - self.t_enter
+        tau = t - self.t_enter + self.cfg.flight_lead
         if self._flight is None:
             q_pre = self.o_j_pre.evaluate(dyn)[0]
             self._flight = dict(
