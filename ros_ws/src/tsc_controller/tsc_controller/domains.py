@@ -280,7 +280,10 @@ class ControllerConfig:
     #   0.1 over 1 s (default): 15, 15, 10, 15; on 15 other start times 15, 14, -, 15
     #   0.2 / 0.05:            14 / 15, 15 / 13, 1 / 10, 9 / 10;  ramp 1.5 s: 15, 15, 8, 14
     # Flip D (--ground-offset 0.1 --apex 1.2, with its 0.6 m forward distance): 12 of 15 (weight 1: 1),
-    # 11 of the 15 others.
+    # 11 of the 15 others.  (These rows were measured with tests/offline_flip.py anchoring the flight
+    # at the lift-off's onset, 10 ms before the event the graph reports.  With the graph's timing and
+    # flight_lead 0: weight 1 gave 15, 15, A 0 of 15 at 20 s, C 8, D 0; weight 0.1 15, 15, A 7, C 15,
+    # D 2; with flight_lead 0.01 (default) A 10, D 12.)
     # Flip A still falls late: over 20 s of simulation 10 of the 15 start times and 4 of the 15 others
     # land; the others fall 3-10 s after touch-down, while the flywheel's momentum is being removed
     # (the two traced, one offline and one through the graph, drifted sideways onto one leg).
