@@ -258,7 +258,7 @@ class ControllerConfig:
     # (4.5 rad/s, +348 deg, then +383 deg after it).  Measured offline (scripts/bench_landings.py, 15
     # start times; D: --ground-offset 0.1 --apex 1.2; A: --distance 1.0 --apex 1.2 --seconds 20),
     # landed backflips, frontflips, C, A, D: 0 s: 15, 15, 15, 7, 2; 0.01 s: 15, 15, 15, 10, 12;
-    # 0.02 s: D 6
+    # 0.02 s: D 6.  On 15 other start times A goes 8 -> 5 with 0.01 s (15 of 30 either way).
     flight_lead: float = 0.01
     # catch_decel: m/s^2, leg deceleration of the fallback landing (leg_catch); landing_moment: N*m, mean
     # pitch moment it uses to remove H_pitch.  25 and 8 (were 15 and 12): with 15 / 12 the landings
