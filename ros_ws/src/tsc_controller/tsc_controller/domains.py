@@ -33,8 +33,8 @@ Per-foot contact (LANDING, STANDING): a foot that has come off the ground (or ro
 while its leg is unloaded loses its contact rows in the QP and gets a swing output (toe and heel back
 to where it stood, flat, aimed slightly below the ground) until it is down again; with both feet off,
 both keep their contact rows (a rebound).  The fallback landing lasts until its own profiles end
-(leg catch and rise, momentum removal) and the momentum is out, and moves the COM target against the centre-of-pressure offset
-the momentum removal needs, and with the feet where they stand now.
+(leg catch and rise, momentum removal) and the momentum is out, and moves the COM target against the
+centre-of-pressure offset the momentum removal needs, and with the feet where they stand now.
 """
 from __future__ import annotations
 
@@ -668,9 +668,9 @@ class Controller:
             outs = self.jumping_outputs
         elif self.domain == Domain.LANDING and ref is None:
             outs = self.own_landing_outputs
-            w1, w0, T = self.o_H.weight, self.cfg.landing_H_weight, self.cfg.landing_H_ramp
-            x = min(max((t - self._stand["t0"]) / T, 0.0), 1.0) if T > 0 else 1.0
-            self.o_H_land.weight = w0 + (w1 - w0) * x * x * x * (10 - 15 * x + 6 * x * x)
+            cfg = self.cfg
+            self.o_H_land.weight = float(quintic(cfg.landing_H_weight, self.o_H.weight, cfg.landing_H_ramp,
+                                                 t - self._stand["t0"])[0])
         else:
             outs = self.ground_outputs
         return outs, [des[o.name] for o in outs]

@@ -162,16 +162,17 @@ SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP}
 
 class _Task:
     """Per output list (cached): stacked weights and gains, row slices.  Gains are read when the list
-    is first seen, weights whenever one has changed (a weight may vary in time); degree-1 rows get kd = 0 (their command has no velocity term)."""
+    is first seen, weights whenever one has changed (a weight may vary in time); degree-1 rows get
+    kd = 0 (their command has no velocity term)."""
 
     def __init__(self, outputs, evaluated):
         self.outputs = tuple(outputs)          # keeps the ids of the cache key alive
         self.dims = [ev[1].shape[0] for ev in evaluated]
         self.m = sum(self.dims)
-        self._w, self.kp, self.kd = (
+        self.kp, self.kd = (
             np.concatenate([np.broadcast_to(np.asarray(g(o), float), (d,)) for o, d in zip(outputs, self.dims)])
-            for g in (lambda o: o.weight, lambda o: o.kp, lambda o: o.kd if o.degree == 2 else 0.0))
-        self._weights = tuple(o.weight for o in self.outputs)
+            for g in (lambda o: o.kp, lambda o: o.kd if o.degree == 2 else 0.0))
+        self._weights, self._w = None, None      # stacked by ``w`` on first use
         ends = np.cumsum(self.dims).tolist()
         self.slices = [(o.name, slice(e - d, e)) for o, d, e in zip(outputs, self.dims, ends)]
         self.deg1 = [o.degree == 1 for o in outputs]
