@@ -63,7 +63,7 @@ def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywh
     lines = [
         f"<mujoco model={quoteattr(model_name)}>",
         '  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>',
-        f'  <option timestep="{P.TIMESTEP!r}" integrator="{P.INTEGRATOR}"/>',
+        f'  <option timestep="{P.TIMESTEP!r}" integrator="{P.INTEGRATOR}" cone="{P.CONE}" impratio="{P.IMPRATIO!r}"/>',
         "  <default>",
         f'    <geom contype="0" conaffinity="0" condim="1" solref="{_f(*P.GEOM_SOLREF)}" group="2" rgba="0.9 0.5 0.1 1"/>',
         f'    <equality solref="{_f(*P.EQUALITY_SOLREF)}"/>',

@@ -233,6 +233,17 @@ EQUALITY_SOLREF = (0.005, 1.0)    # published default for equality constraints
 GEOM_SOLREF = (0.005, 1.0)        # published default geom solref (feet and ground)
 FRICTION = (1.0, 0.005, 0.0001)   # MuJoCo default sliding/torsional/rolling friction
 INTEGRATOR = "Euler"              # published model uses the default (Euler; damping implicit)
+# Friction cone: elliptic, impratio 100 (MuJoCo's defaults: pyramidal, 1).  MuJoCo's soft contacts
+# let a foot under a steady tangential load well inside the friction cone creep, at a rate that falls
+# with impratio.  Standing under a steady 15 N*m twist at the pelvis (~210 N on each foot), the feet
+# turned on the spot by 49 deg in 3.5 s with the defaults, 4.8 deg with elliptic / 10, 1.6 with 30,
+# 0.5 with 100 (tests/test_tsc_standing.py).  After a 1 m frontflip (flip A) the feet turned by
+# 20-30 deg over 10 s of standing under the hip yaw torques and the robot fell.  Measured offline
+# (scripts/bench_landings.py, 30 start times each), landed backflips, frontflips, C, A, D:
+# defaults 30, 29, 30, 15, 24; with the STANDING COM kd 40 of tsc_controller (the last two),
+# elliptic / 10: 30, 27, 30, 29, 24; elliptic / 100: 30, 29, 30, 28, 28.
+CONE = "elliptic"
+IMPRATIO = 100.0
 
 #: Foot contact points (foot-body frame): the two ends of the published foot collision capsule,
 #: each a sphere of the capsule radius.  Flat-foot contact = both on the ground.  With the robot

@@ -209,6 +209,11 @@ DEFAULT_GAINS = {
 # -0.12 and +0.20 m/s, COM within 0.02 m of the plan.
 JUMPING_GAINS = {"H_pitch": (3.0, 10.0, 0.0), "com": (100.0, 100.0, 20.0)}
 
+# STANDING overrides: COM kd 40.  With 20 a push rocked the standing robot from foot to foot without
+# end (the QP took the weight off one foot, then the other: a 75 N, 0.1 s sideways push at the pelvis
+# rocked it for 6 s and it fell 4.8 s after the push; a 150 N forward push, the same rocking)
+STANDING_GAINS = {"com": (100.0, 100.0, 40.0)}
+
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
 
@@ -325,6 +330,7 @@ class ControllerConfig:
     swing_depth: float = 0.02         # m below the ground the swing foot is aimed at
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
     jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
+    standing_gains: dict = field(default_factory=lambda: dict(STANDING_GAINS))  # overrides in STANDING
     # domain -> w of w ||u - u_prev||^2 in the QP.  JUMPING: without it the torques chatter against the
     # leaf springs, the contact forces the QP predicts (rigid springs) run ahead of the real ones and the
     # feet unload 0.1 s into the push; w = 10 gives the planned lift-off time for backflip, frontflip and
@@ -348,7 +354,7 @@ _DOMAIN_KEYED = ("cop_margin_domains", "torque_smoothing")
 
 def config_overrides(text: str) -> dict:
     """ControllerConfig overrides from a JSON object (the ``controller`` parameter of ``tsc_node``,
-    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` entries (name ->
+    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` / ``standing_gains`` entries (name ->
     [weight, kp, kd]) are merged into the defaults; domain-keyed dicts take domain numbers or names
     ({"JUMPING": 0.2} or {"1": 0.2}).  Raises ValueError with the reason for anything else."""
     import json
@@ -368,7 +374,7 @@ def config_overrides(text: str) -> dict:
         if key not in fields:
             raise ValueError(f"unknown controller setting {key!r}; known: {', '.join(sorted(fields - set(ROBOT_FIELDS)))}")
         cur = getattr(base, key)
-        if key in ("gains", "jumping_gains"):
+        if key in ("gains", "jumping_gains", "standing_gains"):
             if not isinstance(val, dict):
                 raise ValueError(f"{key} must be an object name -> [weight, kp, kd]")
             merged = dict(cur)
@@ -420,6 +426,13 @@ def _mk(cls, name, gains, key=None, **kw):
     return cls(name=name, weight=w, kp=kp, kd=kd, **kw)
 
 
+def _ground_outputs(gains):
+    """The outputs of a ground domain (paper §V-A): H_pitch, leg length, COM x/y, pelvis roll/pitch/yaw."""
+    return [_mk(O.CentroidalPitchMomentum, "H_pitch", gains), _mk(O.LegLength, "L", gains),
+            _mk(O.ComPosition, "com", gains, axes=(0, 1)),
+            _mk(O.PelvisOrientation, "pelvis", gains, axes=("roll", "pitch", "yaw"))]
+
+
 class Controller:
     """TSC facade: ``Controller(mjcf_str).compute(q, v, t) -> (u[11], info)``."""
 
@@ -433,17 +446,12 @@ class Controller:
         self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale, flywheel_torque=cfg.flywheel_torque)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
         g = cfg.gains
-        self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", g)
-        self.o_L = _mk(O.LegLength, "L", g)
-        self.o_com = _mk(O.ComPosition, "com", g, axes=(0, 1))
-        self.o_pel = _mk(O.PelvisOrientation, "pelvis", g, axes=("roll", "pitch", "yaw"))
-        self.ground_outputs = [self.o_H, self.o_L, self.o_com, self.o_pel]
+        self.ground_outputs = _ground_outputs(g)
+        self.o_H, self.o_L, self.o_com, self.o_pel = self.ground_outputs
         self.o_H_land = _mk(O.CentroidalPitchMomentum, "H_pitch", g)      # weight set per tick
         self.own_landing_outputs = [self.o_H_land, self.o_L, self.o_com, self.o_pel]
-        gj = {**g, **cfg.jumping_gains}
-        self.jumping_outputs = [_mk(O.CentroidalPitchMomentum, "H_pitch", gj), _mk(O.LegLength, "L", gj),
-                                _mk(O.ComPosition, "com", gj, axes=(0, 1)),
-                                _mk(O.PelvisOrientation, "pelvis", gj, axes=("roll", "pitch", "yaw"))]
+        self.standing_outputs = _ground_outputs({**g, **cfg.standing_gains})
+        self.jumping_outputs = _ground_outputs({**g, **cfg.jumping_gains})
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
         self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=lambda: self.pitch)
         self.o_axis = _mk(O.PelvisAxisTilt, "axis", g)
@@ -666,6 +674,8 @@ class Controller:
             put("pelvis", 2, "phi_yaw")
         if self.domain == Domain.JUMPING:
             outs = self.jumping_outputs
+        elif self.domain == Domain.STANDING:
+            outs = self.standing_outputs
         elif self.domain == Domain.LANDING and ref is None:
             outs = self.own_landing_outputs
             cfg = self.cfg
