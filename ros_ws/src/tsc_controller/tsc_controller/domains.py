@@ -466,6 +466,9 @@ class Controller:
         self._foot_anchor = None            # per foot: toe, heel world positions where it stands
         # per foot: point-table rows of toe, heel
         self._feet_idx = [[self.dyn.point_index(f"{s}_{e}") for e in ("toe", "heel")] for s in SIDES]
+        self._feet_rows = np.array(self._feet_idx).ravel()
+        self._shin_k = np.array([0, 2])                       # the shin springs among the leaf springs
+        self._shin_q = self.dyn.spring_q[self._shin_k]
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
@@ -772,20 +775,21 @@ class Controller:
         for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
         slide 9 cm and the robot fall)."""
         dyn, cfg = self.dyn, self.cfg
-        P = [dyn.P[i].reshape(6) for i in self._feet_idx]        # toe, heel (copies: fancy indexing)
+        P = dyn.P[self._feet_rows].reshape(2, 6)                  # per foot: toe, heel (a copy)
+        z_low = np.minimum(P[:, 2], P[:, 5]).tolist()               # lowest point of each foot
         if self._foot_anchor is None:
-            self._z_ground = float(min(min(p[2], p[5]) for p in P))
-            self._foot_anchor = [p.copy() for p in P]
+            self._z_ground = min(z_low)
+            self._foot_anchor = [P[0].copy(), P[1].copy()]
             self.feet_contact = [True, True]
         # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
         # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
-        iq = dyn.spring_q[[0, 2]]
-        tau_shin = -dyn.spring_k[[0, 2]] * (dyn.q[iq] - dyn.q_spring[iq])
+        iq = self._shin_q
+        tau_shin = (-dyn.spring_k[self._shin_k] * (dyn.q[iq] - dyn.q_spring[iq])).tolist()
         for k, p in enumerate(P):
             # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
             # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
             # backflip landings: 1 fall in 6 start times with, 0 in 6 without)
-            h = min(p[2], p[5]) - self._z_ground
+            h = z_low[k] - self._z_ground
             if self.feet_contact[k]:
                 if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
                     self.feet_contact[k] = False
@@ -794,7 +798,7 @@ class Controller:
                     if tau_shin[k] >= cfg.foot_loaded_spring:
                         # the ground height follows the loaded feet (first estimate, at touch-down, is
                         # a few mm low: the impact pushes the feet into the compliant contact)
-                        self._z_ground += 0.01 * (min(p[2], p[5]) - self._z_ground)
+                        self._z_ground += 0.01 * (z_low[k] - self._z_ground)
             elif h < cfg.foot_land:
                 self.feet_contact[k] = True
 
