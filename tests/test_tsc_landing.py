@@ -64,7 +64,8 @@ def test_flip_lands_and_stands(sign, T, config):
 def test_own_landing_lets_the_flywheel_take_the_impact_then_removes_the_momentum():
     """The own landing starts with a light H_pitch weight (the flywheel may take the moment of the
     braking ground forces), back to its ``gains`` weight after ``landing_H_ramp``, and lasts until
-    the momentum is below ``landing_H_done`` (the standing that follows removes it no slower)."""
+    the momentum is below ``landing_H_done`` (the standing that follows removes it no slower).  The
+    momentum comes out at ``landing_moment``, from ``landing_late_after`` on at ``landing_moment_late``."""
     r = run_flip(1, 0.6)
     ctl, tr = r["ctl"], r["trace"]
     cfg = ctl.cfg
@@ -78,3 +79,12 @@ def test_own_landing_lets_the_flywheel_take_the_impact_then_removes_the_momentum
     end = next(i for i, x in enumerate(tr) if x[0] > t_td and x[1] == Domain.STANDING)
     assert abs(tr[end - 1][3]) <= cfg.landing_H_done + 0.5        # (sim and controller differ a little)
     assert r["fell"] is None
+
+    def H_at(dt):
+        return next(x[3] for x in tr if x[0] >= t_td + dt)
+    # the momentum comes out at landing_moment, then (from landing_late_after) at landing_moment_late
+    assert cfg.landing_moment_late > cfg.landing_moment
+    early = (H_at(1.0) - H_at(1.75)) / 0.75
+    late = (H_at(cfg.landing_late_after + 0.5) - H_at(cfg.landing_late_after + 1.0)) / 0.5
+    assert early == pytest.approx(cfg.landing_moment, rel=0.1)
+    assert late == pytest.approx(cfg.landing_moment_late, rel=0.1)
