@@ -272,6 +272,14 @@ class ControllerConfig:
     # start times 13 / 3 -> 15 / 12; alone, decel 25: 12 / 8, moment 8: 15 / 7, moment 6: 14 / 8
     catch_decel: float = 25.0
     landing_moment: float = 8.0
+    # N*m: the removal moment from landing_late_after (s) into the landing or standing on, ramped in over
+    # moment_ramp (0: landing_moment throughout).  The landing's first seconds need the gentle 8 N*m;
+    # by then the robot stands still on both feet and takes more.  After flip A the flywheel holds
+    # ~90 kg*m^2/s: out ~8 s after touch-down with 16 from 2 s on, ~13.5 s with 8 throughout.
+    # Measured offline (scripts/bench_landings.py, 30 start times): the same 145 of 150 landed, from
+    # the same start times; landing_moment 12 / 16 throughout: 71 / 69 of the first 75 (against 72).
+    landing_moment_late: float = 16.0
+    landing_late_after: float = 2.0
     # The own LANDING's H_pitch weight starts at landing_H_weight and rises to its ``gains`` value over
     # landing_H_ramp (s, quintic).  A touch-down with forward speed is stopped by a backward ground
     # force below the COM, whose moment turns the body forward unless the flywheel takes it: with the
@@ -289,23 +297,14 @@ class ControllerConfig:
     # at the lift-off's onset, 10 ms before the event the graph reports.  With the graph's timing and
     # flight_lead 0: weight 1 gave 15, 15, A 0 of 15 at 20 s, C 8, D 0; weight 0.1 15, 15, A 7, C 15,
     # D 2; with flight_lead 0.01 (default) A 10, D 12.)
-    # Flip A still falls late: over 20 s of simulation 10 of the 15 start times and 4 of the 15 others
-    # land; the others fall 3-10 s after touch-down, while the flywheel's momentum is being removed
-    # (the two traced, one offline and one through the graph, drifted sideways onto one leg).
+    # Flip A then fell late (3-10 s after touch-down, while the flywheel's momentum was being removed)
+    # from 5 of its 15 start times: the simulator's feet crept on the ground (cassie_flip_sim
+    # robot_params.CONE); with that fixed 28 of 30 land.
     landing_H_weight: float = 0.1
-    # N*m: the removal moment from landing_late_after (s) into the landing or standing on, ramped in over
-    # moment_ramp (0: landing_moment throughout).  The landing's first seconds need the gentle 8 N*m;
-    # by then the robot stands still on both feet and takes more.  After flip A the flywheel holds
-    # ~90 kg*m^2/s: out ~8 s after touch-down with 16 from 2 s on, ~13.5 s with 8 throughout.
-    # Measured offline (scripts/bench_landings.py, 30 start times): the same 145 of 150 landed, from
-    # the same start times; landing_moment 12 / 16 throughout: 71 / 69 of the first 75 (against 72).
-    landing_moment_late: float = 16.0
-    landing_late_after: float = 2.0
     landing_H_ramp: float = 1.0
     # kg*m^2/s: the own landing lasts until |H_pitch| is below this (and its profiles have ended).
-    # After flip A the flywheel holds ~80 kg*m^2/s, which the removal at landing_moment takes ~12 s to
-    # take out; a landing ended by its clock with 56 left handed it to STANDING, and the robot fell
-    # (A: 10 -> 11 of 15 start times at 9 s of simulation)
+    # After flip A the flywheel holds ~80-90 kg*m^2/s; a landing ended by its clock with 56 left handed
+    # it to STANDING, and the robot fell (A: 10 -> 11 of 15 start times at 9 s of simulation)
     landing_H_done: float = 2.0
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
@@ -472,11 +471,11 @@ class Controller:
         self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
         self.feet_contact = [True, True]   # per-foot contact state in the ground domains
         self._foot_anchor = None            # per foot: toe, heel world positions where it stands
-        # per foot: point-table rows of toe, heel
-        self._feet_idx = [[self.dyn.point_index(f"{s}_{e}") for e in ("toe", "heel")] for s in SIDES]
-        self._feet_rows = np.array(self._feet_idx).ravel()
-        self._shin_k = np.array([0, 2])                       # the shin springs among the leaf springs
-        self._shin_q = self.dyn.spring_q[self._shin_k]
+        # point-table rows of toe, heel of each foot
+        self._feet_rows = np.array([self.dyn.point_index(f"{s}_{e}") for s in SIDES for e in ("toe", "heel")])
+        # the shin springs (first and third leaf spring): q rows, stiffness, rest angle
+        self._shin_q = self.dyn.spring_q[[0, 2]]
+        self._shin_k, self._shin_q0 = self.dyn.spring_k[[0, 2]], self.dyn.q_spring[self._shin_q]
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
@@ -655,13 +654,13 @@ class Controller:
         H_now = float(self.o_H.evaluate(self.dyn)[0][0])
         self._stand["H_now"] = H_now
         cfg = self.cfg
-        ramp = min(1.0, max(dt, 0.0) / cfg.moment_ramp) if cfg.moment_ramp > 0 else 1.0
-        M = cfg.landing_moment * ramp
-        slope = cfg.landing_moment / cfg.moment_ramp if dt < cfg.moment_ramp else 0.0
+        # M ramps from 0 to landing_moment over moment_ramp, later from there to landing_moment_late
+        M0, M1, t1 = 0.0, cfg.landing_moment, 0.0
         if cfg.landing_moment_late and dt > cfg.landing_late_after:
-            r2 = min(1.0, (dt - cfg.landing_late_after) / cfg.moment_ramp) if cfg.moment_ramp > 0 else 1.0
-            M = cfg.landing_moment + (cfg.landing_moment_late - cfg.landing_moment) * r2
-            slope = (cfg.landing_moment_late - cfg.landing_moment) / cfg.moment_ramp if r2 < 1.0 else 0.0
+            M0, M1, t1 = cfg.landing_moment, cfg.landing_moment_late, cfg.landing_late_after
+        x = (dt - t1) / cfg.moment_ramp if cfg.moment_ramp > 0 else 1.0
+        M = M0 + (M1 - M0) * min(1.0, max(x, 0.0))
+        slope = (M1 - M0) / cfg.moment_ramp if x < 1.0 else 0.0
         if kp * abs(H_now) >= M:
             hd = -math.copysign(M, H_now)
             hdd = -math.copysign(slope, H_now)
@@ -797,8 +796,7 @@ class Controller:
             self.feet_contact = [True, True]
         # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
         # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
-        iq = self._shin_q
-        tau_shin = (-dyn.spring_k[self._shin_k] * (dyn.q[iq] - dyn.q_spring[iq])).tolist()
+        tau_shin = (-self._shin_k * (dyn.q[self._shin_q] - self._shin_q0)).tolist()
         for k, p in enumerate(P):
             # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
             # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
