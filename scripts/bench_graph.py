@@ -2,9 +2,12 @@
 """Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
 measured over the stepping loop from the bag's /clock log times (wall-clock receive times), start-up
 reported apart, with the fraction of the steps' /clock and /odom messages the bag holds (a lockstep
-run must lose none).  Prints a table, and a second one with the simulator's loop per step (its log:
-simulate, publish the state, wait for the controller's command, planner holds, rest).  The machine's load average is printed with it: on a shared
-2-core machine the factor follows the other processes.
+run must lose none).  Prints a table, a second one with the simulator's loop per step (its log:
+simulate, publish the state, wait for the controller's command, planner holds, rest), and a third
+with the CPU time per step of the simulator's and the controller's processes (their logs: main
+thread, and the middleware's threads), which share one CPU: their sum against the wall time per step
+tells whether the loop waits (wake-ups, hand-overs) or computes.  The machine's load average is
+printed with it: on a shared 2-core machine the factor follows the other processes.
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
         [--flywheel-torque NM] [--apex M]
@@ -35,19 +38,21 @@ def one_run(kind: str, out: Path, extra: list[str]) -> dict:
     s = json.loads((out / "summary.json").read_text())
     run = json.loads((out / "run.json").read_text())
     tick = s.get("tsc_tick_us") or {}
-    return {"loop": sim_loop_us(out / "logs" / "sim.log"), "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
+    return {"loop": sim_loop_us(out / "logs" / "sim.log"),
+            "cpu": {role: cpu_per_step_us(out / "logs" / f"{role}.log") for role in ("sim", "tsc")},
+            "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
             "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
             "rtf": s.get("real_time_factor"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
             "recorded": recorded_fraction(out / "bag"), "load": os.getloadavg()[0], "process_total_s": total}
 
 
-def sim_loop_us(log: Path) -> dict:
-    """{part: mean us per step} from sim_node's 'loop per step (mean us): name value, ...' line."""
+def sim_loop_us(log: Path, marker: str = "loop per step (mean us): ") -> dict:
+    """{part: mean us per step} from sim_node's 'loop per step (mean us): name value, ...' line (or
+    another line of that form)."""
     try:
         text = log.read_text(errors="replace")
     except OSError:
         return {}
-    marker = "loop per step (mean us): "
     lines = [ln for ln in text.splitlines() if marker in ln]
     if not lines:
         return {}
@@ -59,6 +64,12 @@ def sim_loop_us(log: Path) -> dict:
         except ValueError:
             pass
     return out
+
+
+def cpu_per_step_us(log: Path) -> dict:
+    """{'main thread': us, 'other threads': us} per step from a node's 'cpu per step (mean us): ...' line
+    (cassie_flip_sim.lockstep.cpu_per_step_line)."""
+    return sim_loop_us(log, "cpu per step (mean us): ")
 
 
 def recorded_fraction(bag: Path) -> str:
@@ -106,6 +117,18 @@ def main() -> int:
         for i, r in enumerate(rows):
             print(f"| {i} | " + " | ".join(f"{r['loop'].get(n, float('nan')):.0f}" for n in parts)
                   + f" | {sum(r['loop'].values()):.0f} |")
+    if any(r["cpu"]["sim"] and r["cpu"]["tsc"] for r in rows):
+        print()
+        print("CPU time per step, mean us (each node's log: its main thread, and its other threads = the "
+              "middleware's; the two nodes share one CPU, so the sum against the loop's wall time per step "
+              "is how busy that CPU is)")
+        print("| run | sim main | sim other | tsc main | tsc other | sum | loop wall | busy |")
+        print("|-----|----------|-----------|----------|-----------|-----|-----------|------|")
+        for i, r in enumerate(rows):
+            c = [r["cpu"][n].get(k, float("nan")) for n in ("sim", "tsc") for k in ("main thread", "other threads")]
+            wall = sum(r["loop"].values())
+            print(f"| {i} | " + " | ".join(f"{x:.0f}" for x in c) + f" | {sum(c):.0f} | {wall:.0f} | "
+                  f"{100 * sum(c) / wall if wall else float('nan'):.0f} % |")
     rtf = [r["rtf"] for r in rows if r["rtf"]]
     if rtf:
         print(f"real-time factor over the stepping loop: median {statistics.median(rtf):.3f}, best {max(rtf):.3f}, "

@@ -123,6 +123,12 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
     spec.loader.exec_module(bench_graph)
     loop = bench_graph.sim_loop_us(out_a / "logs" / "sim.log")
     assert list(loop) == ["simulate", "publish state", "wait for command", "planner holds", "rest"], loop
+    # and each node's CPU time per step: the simulator's main thread cannot use more than the loop's wall time
+    for role in ("sim", "tsc"):
+        cpu = bench_graph.cpu_per_step_us(out_a / "logs" / f"{role}.log")
+        assert list(cpu) == ["main thread", "other threads"], (role, cpu)
+        assert cpu["main thread"] > 0 and cpu["other threads"] >= 0, (role, cpu)
+    assert bench_graph.cpu_per_step_us(out_a / "logs" / "sim.log")["main thread"] <= sum(loop.values()) + 1
     assert loop["simulate"] > 0 and loop["publish state"] > 0 and loop["wait for command"] > 0
     assert loop["planner holds"] == 0 and loop["rest"] >= 0                # standing: nothing to plan
     for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang"))):

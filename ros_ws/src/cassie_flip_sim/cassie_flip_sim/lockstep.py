@@ -55,6 +55,16 @@ def pin_to_lockstep_cpu():
     return int(cpu)
 
 
+def cpu_per_step_line(cpu0, steps):
+    """'cpu per step (mean us): main thread M, other threads O': this process's CPU time since
+    ``cpu0`` = (process_time, main thread's thread_time), per step; the other threads are the
+    middleware's (DDS receive and event threads). scripts/bench_graph.py reads the line."""
+    proc, main = time.process_time() - cpu0[0], time.thread_time() - cpu0[1]
+    n = max(steps, 1)
+    return (f'cpu per step (mean us): main thread {1e6 * main / n:.0f}, '
+            f'other threads {1e6 * max(proc - main, 0.0) / n:.0f}')
+
+
 def _ignore(_msg):
     return None
 

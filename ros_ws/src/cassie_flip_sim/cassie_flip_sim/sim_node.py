@@ -29,7 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from .lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage, SubscriptionSet, fields,
+from .lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage, SubscriptionSet, cpu_per_step_line, fields,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
                        odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
 from .node_stop import run_until_stopped
@@ -272,6 +272,7 @@ class SimNode:
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
                  f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m')
         wall0 = time.monotonic()
+        cpu0 = (time.process_time(), time.thread_time())
         k = 0
         late = missing = 0
         # wall time of the loop's parts (s, summed over the steps): the per-step budget in the log
@@ -344,6 +345,7 @@ class SimNode:
                 per['planner holds'] = 1e6 * sum(self.hold_times) / k
                 per['rest'] = max(1e6 * wall / k - sum(per.values()), 0.0)
                 log.info('loop per step (mean us): ' + ', '.join(f'{n} {v:.0f}' for n, v in per.items()))
+                log.info(cpu_per_step_line(cpu0, k))
         return 0
 
     def _wait_command(self, k):

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import rclpy
 from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage,
-                                      SubscriptionSet, fields, joint_state_layout,
+                                      SubscriptionSet, cpu_per_step_line, fields, joint_state_layout,
                                       motor_command_layout, odometry_layout,
                                       pin_to_lockstep_cpu, read_stamp_ns, stamp_to_ns)
 from cassie_flip_sim.node_stop import run_until_stopped
@@ -60,6 +60,7 @@ class TscNode:
         self.js_names = None
         self.answered_ns = -1
         self.tick_us = []
+        self.cpu0 = None            # (process, main thread) CPU time at the first tick
 
     def _on_reference(self, msg):
         n_t, n_out = len(msg.t), len(msg.output_names)
@@ -89,6 +90,8 @@ class TscNode:
                                                    pose[:3], pose[3:], twist[:3], twist[3:])
 
     def _answer(self, k_ns):
+        if self.cpu0 is None:
+            self.cpu0 = (time.process_time(), time.thread_time())
         q, v = self._state()
         t0 = time.perf_counter()
         u, info = self.controller.compute(q, v, k_ns * 1e-9)
@@ -146,8 +149,10 @@ class TscNode:
         out, after a stop has shut down the context that /rosout is published in."""
         if self.tick_us:
             a = np.asarray(self.tick_us)
-            rclpy.logging.get_logger('tsc_node_ticks').info(
-                f'{a.size} ticks: median {np.median(a):.0f} us, p99 {np.percentile(a, 99):.0f} us')
+            logger = rclpy.logging.get_logger('tsc_node_ticks')
+            logger.info(f'{a.size} ticks: median {np.median(a):.0f} us, p99 {np.percentile(a, 99):.0f} us')
+            # from the first tick to the way out (waiting costs no CPU), per tick
+            logger.info(cpu_per_step_line(self.cpu0, a.size))
 
 
 def main(args=None):
