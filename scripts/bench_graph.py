@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
 measured over the stepping loop from the bag's /clock log times (wall-clock receive times), start-up
-reported apart, with the fraction of the steps' /clock and /odom messages the bag holds (a lockstep
-run must lose none).  Prints a table, a second one with the simulator's loop per step (its log:
+reported apart, with the fraction of the steps' /odom and /joint_states messages the bag holds (a
+lockstep run must lose none).  Prints a table, a second one with the simulator's loop per step (its log:
 simulate, publish the state, wait for the controller's command, planner holds, rest), and a third
 with the CPU time per step of the simulator's and the controller's processes (their logs: main
 thread, and the middleware's threads), which share one CPU: their sum against the wall time per step
@@ -73,13 +73,14 @@ def cpu_per_step_us(log: Path) -> dict:
 
 
 def recorded_fraction(bag: Path) -> str:
-    """'clock/odom' fractions of the stepped steps (first to last /clock) that the bag holds."""
+    """'odom/joint_states' fractions of the stepped steps (first to last /clock: sim_node publishes
+    the first and the last step's) that the bag holds."""
     import numpy as np
     from flip_tools.bag import load_bag
-    data = load_bag(bag, ["/clock", "/odom"])
-    steps = {t: np.unique(np.round(data[t][k] / 0.0005)) for t, k in (("/clock", "sim_t"), ("/odom", "t"))}
-    n = steps["/clock"][-1] - steps["/clock"][0] + 1
-    return "/".join(f"{len(v) / n:.4f}" for v in steps.values())
+    data = load_bag(bag, ["/clock", "/odom", "/joint_states"])
+    clock = np.round(data["/clock"]["sim_t"] / 0.0005)
+    n = clock.max() - clock.min() + 1
+    return "/".join(f"{len(np.unique(np.round(data[t]['t'] / 0.0005))) / n:.4f}" for t in ("/odom", "/joint_states"))
 
 
 def main() -> int:
@@ -101,9 +102,9 @@ def main() -> int:
             rows.append(one_run(a.kind, Path(tmp) / f"run{i}", extra))
     print(f"flip run {a.kind}: every node its own process, lockstep at 2 kHz sim time")
     print("| run | outcome | graph ready s | sim s | stepping wall s | RTF (stepping) | tsc tick median/p99 us "
-          "| recorded clock/odom | load avg | whole command s |")
+          "| recorded odom/joint_states | load avg | whole command s |")
     print("|-----|---------|---------------|-------|-----------------|----------------|------------------------"
-          "|---------------------|----------|-----------------|")
+          "|----------------------------|----------|-----------------|")
     for i, r in enumerate(rows):
         print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
               f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")

@@ -104,17 +104,19 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
     (a, out_a), (b, _) = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5)
     n = 2000                                                            # 1 s of 0.5 ms steps
     for bag in (a, b):
-        steps = {"/clock": bag["/clock"]["sim_t"], "/odom": bag["/odom"]["t"],
-                 "/joint_states": bag["/joint_states"]["t"]}
+        steps = {"/odom": bag["/odom"]["t"], "/joint_states": bag["/joint_states"]["t"]}
         for topic, t in steps.items():                                  # none lost (a re-send may repeat one)
             assert np.array_equal(np.unique(np.round(t / 0.0005)), np.arange(n)), topic
+        # /clock at 200 Hz (sim_node's clock_rate): every 10th step, and the last one
+        clock_steps = np.unique(np.round(bag["/clock"]["sim_t"] / 0.0005))
+        assert np.array_equal(clock_steps, np.r_[np.arange(0, n, 10), n - 1]), clock_steps
         if bag.count("/motor_command"):           # (the recorder may match the controller late)
             cmd = bag["/motor_command"]
             assert np.array_equal(cmd["step"], np.round(cmd["t"] / 0.0005))  # each command names its step
         # log time = when the DDS reader got the message, not when the recorder took it (it takes
         # what is queued every 10 ms, so take times would repeat within each batch): steps carry
         # distinct, increasing log times, and the bag shows the rate
-        dt_log = np.diff(bag["/clock"]["t_log"])
+        dt_log = np.diff(bag["/odom"]["t_log"])
         assert np.all(dt_log >= 0) and np.count_nonzero(dt_log > 0) > 0.9 * len(dt_log)
     # the simulator's loop per step (its log), as scripts/bench_graph.py reads it
     import importlib.util

@@ -129,24 +129,32 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     if data.start_ns is not None and data.end_ns is not None and data.end_ns >= data.start_ns:
         s["wall_time_s"] = _f((data.end_ns - data.start_ns) * 1e-9, 3)
 
-    # ---- clock: sim duration, real-time factor -------------------------------------------------
+    # ---- sim duration, real-time factor: /odom (one per step, its header stamp the step's sim time;
+    # /clock comes at sim_node's clock_rate), else /clock ---------------------------------------------
     ck = data.get("/clock")
-    if ck is not None and len(ck["sim_t"]) > 1:
-        st, tl = ck["sim_t"], ck["t_log"]
+    od = data.get("/odom")
+    src = ("/odom", od["t"], od["t_log"]) if od is not None and len(od["t"]) > 1 else (
+        ("/clock", ck["sim_t"], ck["t_log"]) if ck is not None and len(ck["sim_t"]) > 1 else None)
+    if src is not None:
+        topic, st, tl = src
         s["sim_time_start_s"] = _f(st[0])
         s["sim_time_end_s"] = _f(st[-1])
         s["sim_duration_s"] = _f(st[-1] - st[0])
         wall = tl[-1] - tl[0]
         s["clock_wall_s"] = _f(wall, 3)
         s["real_time_factor"] = _f((st[-1] - st[0]) / wall, 3) if wall > 0 else None
-        steps = np.diff(st)
-        if len(steps):
-            dt = float(np.median(steps))
+        s["sim_time_source"] = topic
+    else:
+        notes.append("no /odom or /clock in the bag: no sim duration / real-time factor")
+    for topic, key in (("/odom", "t"), ("/clock", "sim_t")):
+        d = data.get(topic)
+        if d is not None and len(d[key]) > 1:
+            st = np.unique(d[key])
+            steps = np.diff(st)
+            dt = float(np.median(steps)) if len(steps) else 0.0
             if dt > 0:
                 expected = int(round((st[-1] - st[0]) / dt)) + 1
-                s["clock_messages_recorded_fraction"] = _f(len(st) / expected, 4)
-    else:
-        notes.append("no /clock in the bag: no sim duration / real-time factor")
+                s[f"{topic[1:]}_messages_recorded_fraction"] = _f(len(st) / expected, 4)
 
     # ---- contact events: flight time, bodies other than the feet on the ground ----------------
     ce = data.get("/contact_events")

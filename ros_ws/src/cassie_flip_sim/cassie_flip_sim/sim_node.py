@@ -4,8 +4,9 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
   1. at a contact event, publish ``/contact_events``; while a flip plan is in force, hold until the
      planner's reference for the domain entered is on the graph (the paper's simulation does the
      same), so a run does not depend on the planner's wall time;
-  2. publish ``/clock``, ``/odom``, ``/joint_states`` stamped k·dt (``/joint_states`` last: the
-     controller wakes on it);
+  2. publish ``/odom``, ``/joint_states`` stamped k·dt (``/joint_states`` last: the controller wakes
+     on it), and ``/clock`` every ``clock_rate`` period (default 200 Hz: every 10th step) and at the
+     last step;
   3. wait for the ``/motor_command`` with ``step == k`` (older ones are dropped; on a timeout the
      state is sent again and the silence is reported), apply it, step.
 The per-step messages are published from preallocated serialized templates and the commands read
@@ -45,6 +46,10 @@ WATCHDOG_STEPS = 40
 WATCHDOG_DAMPING = 5.0
 #: wall time without a command before the state is sent again and the silence is reported
 COMMAND_RESEND_S = 0.05
+#: default rate of /clock, Hz: sim time for the nodes that run on it (use_sim_time), not the lockstep's
+#: step (each state carries its own stamp); every step, each of its subscribers (recorder, planner,
+#: `flip`) cost the simulator's loop ~15 us of the shared CPU (scripts/bench_graph.py)
+CLOCK_RATE_HZ = 200.0
 #: once the subscribers have matched the simulator's publishers, the wall time left for their side
 #: of the match before the first step (a best-effort reader drops what comes before it matches)
 MATCH_SETTLE_S = 0.3
@@ -101,6 +106,10 @@ class SimNode:
         self.scenario = scenario
         self.dt = self.sim.timestep
         self.dt_ns = int(round(self.dt * 1e9))
+        # /clock every clock_every steps (clock_rate <= 0 or >= the step rate: every step)
+        clock_rate = float(_declare(n, 'clock_rate', CLOCK_RATE_HZ))
+        self.clock_every = max(1, int(round(1.0 / (clock_rate * self.dt)))) if clock_rate > 0 else 1
+        self.clock_k = -1               # step of the newest /clock published
 
         self.pub_clock = n.create_publisher(Clock, '/clock', STREAM_QOS)
         self.pub_js = n.create_publisher(JointState, '/joint_states', STREAM_QOS)
@@ -136,9 +145,14 @@ class SimNode:
         self.msg_odom = RawMessage(odom, odometry_layout)
         self.cmd_names = None       # the commands' motor names, as motor_command_layout gives them
 
+    def _publish_clock(self, k):
+        self.msg_clock.stamp(k * self.dt_ns)
+        self.pub_clock.publish(self.msg_clock.data())
+        self.clock_k = k
+
     def _publish_state(self, k):
         ns = k * self.dt_ns
-        for m in (self.msg_clock, self.msg_odom, self.msg_js):
+        for m in (self.msg_odom, self.msg_js):
             m.stamp(ns)
         pose, twist = self.msg_odom.fields['pose'], self.msg_odom.fields['twist']
         pos, quat = self.sim.pelvis_pose()
@@ -148,7 +162,8 @@ class SimNode:
         js['position'][:] = self.sim.joint_positions()
         js['velocity'][:] = self.sim.joint_velocities()
         js['effort'][:] = self.sim.joint_efforts()
-        self.pub_clock.publish(self.msg_clock.data())
+        if k % self.clock_every == 0 and k != self.clock_k:
+            self._publish_clock(k)
         self.pub_odom.publish(self.msg_odom.data())
         self.pub_js.publish(self.msg_js.data())
 
@@ -274,6 +289,7 @@ class SimNode:
         wall0 = time.monotonic()
         cpu0 = (time.process_time(), time.thread_time())
         k = 0
+        self.last_state_k = -1
         late = missing = 0
         # wall time of the loop's parts (s, summed over the steps): the per-step budget in the log
         spent = {'simulate': 0.0, 'publish state': 0.0, 'wait for command': 0.0}
@@ -295,6 +311,7 @@ class SimNode:
                 self.body_contact = bool(touching)
                 c0 = clock()
                 self._publish_state(k)
+                self.last_state_k = k
                 c1 = clock()
                 spent['publish state'] += c1 - c0
                 if self.controller == 'tsc':
@@ -334,6 +351,8 @@ class SimNode:
                     self.executor.spin_once(timeout_sec=0.0)
         finally:
             wall = time.monotonic() - wall0
+            if self.last_state_k > self.clock_k and rclpy.ok():    # sim time up to the last state sent
+                self._publish_clock(self.last_state_k)
             sim_t = k * self.dt
             log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
                      f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
