@@ -56,6 +56,10 @@ def bench_bare(steps: int, flywheel: str = "I") -> list[tuple[str, float]]:
     sim.clip_torques = False
     sim.reset()
     rows.append(("Simulator.step, standing, clipping off", _rate(lambda: sim.step(u), steps)))
+    ref = Simulator(flywheel, "flat", backend="python")       # the numpy reference of the compiled step
+    rows.append(("Simulator.step, standing, u = 0, numpy", _rate(lambda: ref.step(u), steps)))
+    ref.reset()
+    rows.append(("Simulator.step, standing, random u, numpy", _rate(lambda: ref.step(u_rand), steps)))
     return rows
 
 

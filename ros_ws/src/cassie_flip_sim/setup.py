@@ -1,9 +1,44 @@
-"""ament_python package cassie_flip_sim: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv."""
-from glob import glob
+"""ament_python package cassie_flip_sim: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv.
 
+The simulator's per-step work (cassie_flip_sim._native, native/step.cpp) is a pybind11 extension on
+the MuJoCo C API: the headers and library of the mujoco wheel."""
+import importlib.util
+from glob import glob
+from pathlib import Path
+
+from pybind11.setup_helpers import Pybind11Extension, build_ext
 from setuptools import find_packages, setup
 
 package_name = "cassie_flip_sim"
+
+
+def mujoco_dir() -> Path:
+    """The mujoco wheel's package directory: include/mujoco/*.h and libmujoco.so.*."""
+    spec = importlib.util.find_spec("mujoco")
+    if spec is None or spec.origin is None:
+        raise RuntimeError("cassie_flip_sim: the mujoco wheel must be installed to build the native step")
+    d = Path(spec.origin).parent
+    libs = sorted(d.glob("libmujoco.so.*"))
+    if not (d / "include" / "mujoco" / "mujoco.h").is_file() or not libs:
+        raise RuntimeError(f"cassie_flip_sim: no MuJoCo headers or library in {d}")
+    return d
+
+
+def native_extension():
+    d = mujoco_dir()
+    lib = sorted(d.glob("libmujoco.so.*"))[-1].name
+    return Pybind11Extension(
+        f"{package_name}._native",
+        ["cassie_flip_sim/native/step.cpp"],
+        include_dirs=[str(d / "include")],
+        library_dirs=[str(d)],
+        # the library the mujoco module itself loads (same soname, one copy in the process)
+        extra_link_args=[f"-l:{lib}", f"-Wl,-rpath,{d}"],
+        # -ffp-contract=off: no fused multiply-adds the numpy reference does not make (bit-equal steps)
+        extra_compile_args=["-O2", "-ffp-contract=off"],
+        cxx_std=17,
+    )
+
 
 setup(
     name=package_name,
@@ -15,8 +50,10 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     package_data={package_name: ["data/*.json"]},
+    ext_modules=[native_extension()],
+    cmdclass={"build_ext": build_ext},
     install_requires=["setuptools"],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="somersault developers",
     maintainer_email="somersault@example.org",
     description="MuJoCo simulator of Cassie with a pelvis flywheel: deterministic 2 kHz lockstep node.",

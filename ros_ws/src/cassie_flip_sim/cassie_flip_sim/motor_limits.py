@@ -45,6 +45,11 @@ class MotorLimits:
         # 1/ω₀, 0 where the no-load speed is inf: bounds() runs twice a step (simulator, controller)
         object.__setattr__(self, "_inv_w0", 1.0 / np.asarray(self.no_load_speed, float))
 
+    @property
+    def inv_no_load_speed(self) -> np.ndarray:
+        """1/ω₀ per motor (0 for a motor without a speed limit), as :meth:`bounds` uses it."""
+        return self._inv_w0
+
     def bounds(self, motor_velocities) -> Tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of the joint-side torques at the given joint-side motor velocities (rad/s)."""
         w = np.asarray(motor_velocities, float)

@@ -154,14 +154,8 @@ class SimNode:
         ns = k * self.dt_ns
         for m in (self.msg_odom, self.msg_js):
             m.stamp(ns)
-        pose, twist = self.msg_odom.fields['pose'], self.msg_odom.fields['twist']
-        pos, quat = self.sim.pelvis_pose()
-        pose[:3], pose[3:6], pose[6] = pos, quat[1:], quat[0]       # orientation x, y, z, w
-        twist[:3], twist[3:] = self.sim.pelvis_twist('local')
-        js = self.msg_js.fields
-        js['position'][:] = self.sim.joint_positions()
-        js['velocity'][:] = self.sim.joint_velocities()
-        js['effort'][:] = self.sim.joint_efforts()
+        js, od = self.msg_js.fields, self.msg_odom.fields
+        self.sim.state_into(js['position'], js['velocity'], js['effort'], od['pose'], od['twist'])
         if k % self.clock_every == 0 and k != self.clock_k:
             self._publish_clock(k)
         self.pub_odom.publish(self.msg_odom.data())

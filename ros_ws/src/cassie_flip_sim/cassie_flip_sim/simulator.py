@@ -4,6 +4,10 @@ Stepping: between steps the data holds ``mj_step1`` of the current state (kinema
 passive forces).  ``step(u)`` clips u with the motor limits, runs ``mj_step2`` (forces with u,
 Euler integration), records the foot normal forces that acted during that step, then runs
 ``mj_step1`` of the new state.  Same sequence as ``mj_step``; bit-for-bit repeatable.
+
+``backend="native"`` (default) runs that step, the state of ``state_into`` and the body-contact test
+in C++ on the MuJoCo C API (``cassie_flip_sim._native``, native/step.cpp); ``"python"`` is the numpy
+reference.  The two step bit for bit alike (tests/test_sim_native.py).
 """
 from __future__ import annotations
 
@@ -12,6 +16,7 @@ from typing import List, Optional, Tuple, Union
 import mujoco
 import numpy as np
 
+from . import _native
 from . import model as M
 from . import robot_params as P
 from .contacts import ContactDetector, ContactEvent, FootForces
@@ -23,7 +28,8 @@ class Simulator:
 
     def __init__(self, flywheel: M.FlywheelSpec = "I", scenario: Union[str, M.Scenario, None] = None, *,
                  clip_torques: bool = True, detector: Optional[ContactDetector] = None,
-                 motor_speed_scale: float = 1.0, flywheel_torque: Optional[float] = None):
+                 motor_speed_scale: float = 1.0, flywheel_torque: Optional[float] = None,
+                 backend: str = "native"):
         # flywheel_torque (N·m): the flywheel motor's limit (None or 0: the flywheel's max_torque)
         self.flywheel = with_flywheel_torque(P.flywheel(flywheel), flywheel_torque)
         self.scenario = M.scenario(scenario)
@@ -42,6 +48,11 @@ class Simulator:
                             for side in ("left", "right") for g in M.FOOT_GEOMS[side]]
         self._foot_forces = FootForces(m)
         self._build_joint_table()
+        if backend not in ("native", "python"):
+            raise ValueError(f"backend must be 'native' or 'python', not {backend!r}")
+        self.backend = backend
+        self._native = self._make_native() if backend == "native" else None
+        self._u_applied = np.zeros(len(self.motor_names))
         self.standing_qpos, _ = M.standing_state(m, self.scenario)
         self.reset()
 
@@ -61,9 +72,29 @@ class Simulator:
         self.detector.reset(in_contact)
         self.events: List[ContactEvent] = []
 
+    def _make_native(self):
+        m = self.model
+        side = np.full(m.ngeom, -1)
+        for g, k in self._foot_forces.side_of.items():
+            side[g] = k
+        return _native.Stepper(
+            m._address, self.data._address, self._motor_dof, self._act_ids, self.limits.torque_limit,
+            self.limits.inv_no_load_speed, side, self._jq, self._jv,
+            np.array([qa for _, qa in self._balls], int), np.array([i for i, _ in self._balls], int),
+            self._pelvis, (m.geom_contype == M.BODY_CONTYPE).astype(int))
+
     def step(self, u) -> None:
         """Advance one timestep with joint-side torques u (contract motor order), clipped to the
         torque–speed envelope."""
+        if self._native is not None:
+            t = self.data.time
+            self.forces = self._native.step(u, self._u_applied, self.clip_torques)
+            self.last_command = self._u_applied.copy()
+            ev = self.detector.update(self._step, t, *self.forces)
+            if ev is not None:
+                self.events.append(ev)
+            self._step += 1
+            return
         m, d = self.model, self.data
         u = np.asarray(u, float)
         if self.clip_torques:
@@ -190,10 +221,25 @@ class Simulator:
         the FSLIP's foot is, whether or not the feet touch the ground."""
         return self.data.geom_xpos[self._foot_geoms].mean(axis=0)
 
+    def state_into(self, position, velocity, effort, pose, twist) -> None:
+        """Write the state into float64 arrays (e.g. views of a serialized message): per
+        ``joint_names`` entry :meth:`joint_positions`, :meth:`joint_velocities`,
+        :meth:`joint_efforts`; ``pose`` = pelvis position and quaternion x, y, z, w (7); ``twist`` =
+        :meth:`pelvis_twist` ``("local")`` (6)."""
+        if self._native is not None:
+            self._native.state(position, velocity, effort, pose, twist)
+            return
+        pos, quat = self.pelvis_pose()
+        pose[:3], pose[3:6], pose[6] = pos, quat[1:], quat[0]
+        twist[:3], twist[3:] = self.pelvis_twist("local")
+        position[:] = self.joint_positions()
+        velocity[:] = self.joint_velocities()
+        effort[:] = self.joint_efforts()
+
     def body_contacts(self) -> List[str]:
         """Names of the bodies other than the feet touching the terrain now (a fall)."""
         m, d = self.model, self.data
-        if d.ncon == 0:
+        if d.ncon == 0 or (self._native is not None and not self._native.body_contact()):
             return []
         g = d.contact.geom[:d.ncon].ravel()
         g = g[m.geom_contype[g] == M.BODY_CONTYPE]

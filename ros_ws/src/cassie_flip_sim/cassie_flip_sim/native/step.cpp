@@ -1,0 +1,164 @@
+// cassie_flip_sim._native: the simulator's per-step work in C++ on the MuJoCo C API, on the mjModel /
+// mjData of the Python bindings (their addresses).  Simulator.step and sim_node's state messages run
+// here: at 2 kHz, the same work in numpy and Python cost the simulator's process ~90 us of CPU a step
+// in the node graph (scripts/bench_graph.py), where it shares one CPU with the controller.
+//
+// Same arithmetic, in the same order, as the numpy reference (Simulator(backend="python")): the
+// torque clip of motor_limits.MotorLimits.clip, contacts.FootForces, Simulator's accessors.  Built
+// with -ffp-contract=off (no fused multiply-adds numpy does not make).
+#include <mujoco/mujoco.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <stdexcept>
+#include <vector>
+
+namespace py = pybind11;
+using DArr = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using IArr = py::array_t<long, py::array::c_style | py::array::forcecast>;
+
+namespace {
+std::vector<long> ivec(const IArr & a) { return std::vector<long>(a.data(), a.data() + a.size()); }
+std::vector<double> dvec(const DArr & a) { return std::vector<double>(a.data(), a.data() + a.size()); }
+/// An output array as bytes: float64, contiguous, writeable, n long; it may be unaligned (sim_node
+/// passes numpy views of a serialized message, whose float64 fields sit 4 bytes off an 8-byte
+/// boundary), so it is written with memcpy.
+unsigned char * out_ptr(py::array & a, long n, const char * what)
+{
+  if (!a.dtype().is(py::dtype::of<double>()) || a.size() != n || !a.writeable() ||
+      !(a.flags() & py::array::c_style))
+    throw std::invalid_argument(std::string("Stepper: ") + what +
+                                ": needs a writeable contiguous float64 array of the right size");
+  return static_cast<unsigned char *>(a.mutable_data());
+}
+inline void put(unsigned char * a, long i, double v) { std::memcpy(a + 8 * i, &v, 8); }
+}  // namespace
+
+class Stepper {
+public:
+  /// model, data: mjModel* / mjData* addresses (mujoco.MjModel._address, MjData._address; the
+  /// Python objects must outlive this).  Motors: dof and actuator ids, torque limits, 1/no-load speed
+  /// (0: no speed limit); foot_side: per geom 0 (left foot), 1 (right foot) or -1; joint table of
+  /// Simulator.joint_names: qpos (-1: part of a ball) and qvel addresses, per ball joint its qpos
+  /// address and its first entry; body_geom: per geom 1 for a body other than the feet.
+  Stepper(std::uintptr_t model, std::uintptr_t data, IArr motor_dof, IArr act_ids, DArr torque_limit,
+          DArr inv_w0, IArr foot_side, IArr jq, IArr jv, IArr ball_qadr, IArr ball_entry,
+          long pelvis, IArr body_geom)
+  : m_(reinterpret_cast<const mjModel *>(model)), d_(reinterpret_cast<mjData *>(data)),
+    dof_(ivec(motor_dof)), act_(ivec(act_ids)), lim_(dvec(torque_limit)), inv_w0_(dvec(inv_w0)),
+    side_(ivec(foot_side)), jq_(ivec(jq)), jv_(ivec(jv)), bq_(ivec(ball_qadr)),
+    be_(ivec(ball_entry)), pelvis_(pelvis), body_(ivec(body_geom))
+  {
+    const size_t nu = dof_.size();
+    if (act_.size() != nu || lim_.size() != nu || inv_w0_.size() != nu)
+      throw std::invalid_argument("Stepper: motor tables of different sizes");
+    if (long(side_.size()) != m_->ngeom || long(body_.size()) != m_->ngeom)
+      throw std::invalid_argument("Stepper: foot_side and body_geom need one entry per geom");
+    bool ok = jq_.size() == jv_.size() && bq_.size() == be_.size() && pelvis_ >= 0 && pelvis_ < m_->nbody;
+    for (size_t i = 0; ok && i < nu; ++i) ok = dof_[i] >= 0 && dof_[i] < m_->nv && act_[i] >= 0 && act_[i] < m_->nu;
+    for (size_t i = 0; ok && i < jq_.size(); ++i) ok = jq_[i] < m_->nq && jv_[i] >= 0 && jv_[i] < m_->nv;
+    for (size_t b = 0; ok && b < bq_.size(); ++b)
+      ok = bq_[b] >= 0 && bq_[b] + 4 <= m_->nq && be_[b] >= 0 && be_[b] + 3 <= long(jv_.size());
+    if (!ok) throw std::invalid_argument("Stepper: motor or joint table, or pelvis, out of the model's range");
+  }
+
+  /// One step with joint-side torques u: clipped to the torque-speed envelope (when clip), written
+  /// to ctrl, mj_step2, the feet's normal forces summed over their contacts (mj_contactForce), then
+  /// mj_step1 of the new state.  u_out gets the applied torques.  Returns (left, right) forces.
+  py::tuple step(DArr u, py::array u_out, bool clip)
+  {
+    const long n = long(dof_.size());
+    if (u.size() != n) throw std::invalid_argument("Stepper.step: u of the wrong size");
+    const double * ui = u.data();
+    unsigned char * uo = out_ptr(u_out, n, "u_out");
+    for (long i = 0; i < n; ++i) {
+      double v = ui[i];
+      if (clip) {
+        // MotorLimits.bounds: avail = limit * max(1 - |w| / w0, 0); ub = avail if w > 0, lb = -avail if w < 0
+        const double w = d_->qvel[dof_[i]], L = lim_[i];
+        const double avail = L * std::max(1.0 - std::fabs(w) * inv_w0_[i], 0.0);
+        const double ub = w > 0 ? avail : L, lb = w < 0 ? -avail : -L;
+        v = std::min(std::max(v, lb), ub);
+      }
+      put(uo, i, v);
+      d_->ctrl[act_[i]] = v;
+    }
+    mj_step2(m_, d_);
+    mjtNum f[6];
+    double out[2] = {0.0, 0.0};
+    for (int i = 0; i < d_->ncon; ++i) {
+      const mjContact & c = d_->contact[i];
+      long s = side_[c.geom[0]];
+      if (s < 0) s = side_[c.geom[1]];
+      if (s < 0 || c.efc_address < 0) continue;
+      mj_contactForce(m_, d_, i, f);
+      out[s] += f[0];
+    }
+    mj_step1(m_, d_);
+    return py::make_tuple(out[0], out[1]);
+  }
+
+  /// The state as sim_node publishes it: per joint_names entry the position (hinge: qpos; ball: its
+  /// rotation vector, mju_quat2Vel), velocity and effort (qfrc_actuator + qfrc_spring); the pelvis
+  /// pose (x, y, z, quaternion x, y, z, w) and twist in the pelvis frame (R^T v, local angular
+  /// velocity; REP 105).
+  void state(py::array pos, py::array vel, py::array eff, py::array pose, py::array twist) const
+  {
+    const long n = long(jv_.size());
+    unsigned char * p = out_ptr(pos, n, "pos"), * v = out_ptr(vel, n, "vel"), * e = out_ptr(eff, n, "eff");
+    unsigned char * ps = out_ptr(pose, 7, "pose"), * tw = out_ptr(twist, 6, "twist");
+    for (long i = 0; i < n; ++i) {
+      put(p, i, d_->qpos[jq_[i] < 0 ? 0 : jq_[i]]);
+      put(v, i, d_->qvel[jv_[i]]);
+      put(e, i, d_->qfrc_actuator[jv_[i]] + d_->qfrc_spring[jv_[i]]);
+    }
+    for (size_t b = 0; b < bq_.size(); ++b) {
+      mjtNum rv[3];
+      mju_quat2Vel(rv, d_->qpos + bq_[b], 1.0);
+      for (int k = 0; k < 3; ++k) put(p, be_[b] + k, rv[k]);
+    }
+    const mjtNum * q = d_->qpos, * qv = d_->qvel;
+    const int order[7] = {0, 1, 2, 4, 5, 6, 3};      // x y z, then the quaternion x y z w (MuJoCo: w x y z)
+    for (int i = 0; i < 7; ++i) put(ps, i, q[order[i]]);
+    const mjtNum * R = d_->xmat + 9 * pelvis_;      // row-major, body to world
+    for (int i = 0; i < 3; ++i) put(tw, i, R[i] * qv[0] + R[3 + i] * qv[1] + R[6 + i] * qv[2]);
+    for (int i = 3; i < 6; ++i) put(tw, i, qv[i]);
+  }
+
+  /// Whether a geom of a body other than the feet is in a contact now.
+  bool body_contact() const
+  {
+    for (int i = 0; i < d_->ncon; ++i)
+      if (body_[d_->contact[i].geom[0]] || body_[d_->contact[i].geom[1]]) return true;
+    return false;
+  }
+
+private:
+  const mjModel * m_;
+  mjData * d_;
+  std::vector<long> dof_, act_;
+  std::vector<double> lim_, inv_w0_;
+  std::vector<long> side_;
+  std::vector<long> jq_, jv_, bq_, be_;
+  long pelvis_;
+  std::vector<long> body_;
+};
+
+PYBIND11_MODULE(_native, mod)
+{
+  mod.doc() = "cassie_flip_sim's per-step work on the MuJoCo C API (see native/step.cpp)";
+  py::class_<Stepper>(mod, "Stepper")
+    .def(py::init<std::uintptr_t, std::uintptr_t, IArr, IArr, DArr, DArr, IArr, IArr, IArr, IArr, IArr,
+                  long, IArr>(),
+         py::arg("model"), py::arg("data"), py::arg("motor_dof"), py::arg("act_ids"), py::arg("torque_limit"),
+         py::arg("inv_w0"), py::arg("foot_side"), py::arg("jq"), py::arg("jv"),
+         py::arg("ball_qadr"), py::arg("ball_entry"), py::arg("pelvis"), py::arg("body_geom"))
+    .def("step", &Stepper::step, py::arg("u"), py::arg("u_out"), py::arg("clip"))
+    .def("state", &Stepper::state, py::arg("pos"), py::arg("vel"), py::arg("eff"), py::arg("pose"), py::arg("twist"))
+    .def("body_contact", &Stepper::body_contact);
+}
