@@ -9,13 +9,17 @@ import textwrap
 import pytest
 
 PROLOGUE = textwrap.dedent("""
-    import os, signal, sys
+    import os, signal, sys, time
     from cassie_flip_sim.node_stop import run_until_stopped
 
     def sigint_now():
         os.kill(os.getpid(), signal.SIGINT)
-        for _ in range(100000):      # bytecodes: the Python handler runs at one of them
-            pass
+        # the Python handler runs at a bytecode of this loop, once a thread has taken the signal
+        # (under load that can be late: a fixed count of bytecodes was not always enough); an
+        # ignored SIGINT waits the whole 0.5 s
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            time.sleep(0.005)
 
     def close():
         print('close started', flush=True)

@@ -181,3 +181,19 @@ def test_fallen_robot_is_only_damped():
     lb, ub = ctl.limits.bounds(w)
     assert np.allclose(u, np.clip(-ctl.cfg.fall_damping * w, lb, ub))
     assert np.all(u * w <= 0.0) and u[-1] < -100.0       # braking, the flywheel hard
+
+
+def test_compiled_state_conversion_equals_the_numpy_one():
+    """StateConverter's compiled conversion (the controller's default) gives the (q, v) of its numpy
+    reference bit for bit, ball joints included, over states of a robot pushed about until it falls."""
+    sim = Simulator()
+    dyn = Dynamics(export_mjcf())
+    native, ref = StateConverter(dyn), StateConverter(dyn, backend="python")
+    assert native.backend == "native"
+    rng = np.random.default_rng(3)
+    for k in range(1500):
+        sim.step(rng.normal(0.0, 40.0, 11) if k % 300 < 100 else np.zeros(11))
+        (q1, v1), (q2, v2) = native.from_simulator(sim), ref.from_simulator(sim)
+        assert np.array_equal(q1, q2) and np.array_equal(v1, v2), k
+    with pytest.raises(ValueError):
+        StateConverter(dyn, backend="gpu")

@@ -42,7 +42,7 @@ def native_extension():
     return Pybind11Extension(
         f"{package_name}._native",
         ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp",
-         "tsc_controller/native/limits.cpp"],
+         "tsc_controller/native/limits.cpp", "tsc_controller/native/state.cpp"],
         include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3")],
         define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                        ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],

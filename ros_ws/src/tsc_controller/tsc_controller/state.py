@@ -13,14 +13,22 @@ import pinocchio as pin
 
 
 class StateConverter:
-    """Builds (q, v) for a :class:`~tsc_controller.dynamics.Dynamics` model from contract arrays."""
+    """Builds (q, v) for a :class:`~tsc_controller.dynamics.Dynamics` model from contract arrays.
 
-    def __init__(self, dyn):
+    With the Dynamics' native backend the conversion runs compiled (``_native.StateMap``: the same
+    Pinocchio exp3 and Eigen quaternion as ``pin.exp3`` / ``pin.Quaternion``); ``backend="python"``
+    is the reference (tests/test_tsc_domains.py compares them)."""
+
+    def __init__(self, dyn, backend: str | None = None):
         self.dyn = dyn
         m = dyn.model
         self.base_q = m.idx_qs[dyn.base_jid]
         self.base_v = m.idx_vs[dyn.base_jid]
         self._names = None
+        self.backend = backend or ("native" if getattr(dyn, "native", None) is not None else "python")
+        if self.backend not in ("native", "python"):
+            raise ValueError(f"backend must be 'native' or 'python', not {self.backend!r}")
+        self._map = None
 
     def _index(self, names):
         m = self.dyn.model
@@ -45,11 +53,21 @@ class StateConverter:
         self._names = list(names)
         self._hq, self._hv, self._hs = np.array(hq), np.array(hv), np.array(hs)
         self._balls = balls
+        if self.backend == "native":
+            from . import _native
+            self._map = _native.StateMap(
+                self.dyn.nq, self.dyn.nv, self.base_q, self.base_v, len(names), self._hq, self._hv, self._hs,
+                np.array([b[0] for b in balls], int), np.array([b[1] for b in balls], int),
+                np.array([k for b in balls for k in b[2]], int))
 
     def from_ros(self, names, position, velocity, base_position, base_quat_xyzw, lin_vel_local, ang_vel_local):
         """(q, v) from JointState (names, position, velocity) and Odometry (pose, child-frame twist)."""
         if self._names is None or list(names) != self._names:
             self._index(names)
+        if self._map is not None:
+            quat = np.asarray(base_quat_xyzw, float)
+            return self._map.convert(position, velocity, base_position, quat / np.linalg.norm(quat),
+                                     lin_vel_local, ang_vel_local)
         position = np.asarray(position, float)
         velocity = np.asarray(velocity, float)
         q = np.empty(self.dyn.nq)
