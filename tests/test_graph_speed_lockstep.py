@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from cassie_flip_sim.lockstep import (RawMessage, fields, joint_state_layout, motor_command_layout,
-                                      odometry_layout, read_stamp_ns)
+from cassie_flip_sim.lockstep import (MessageReader, RawMessage, fields, joint_state_layout,
+                                      motor_command_layout, odometry_layout, read_stamp_ns)
 from flip_msgs.msg import MotorCommand
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
@@ -36,6 +36,34 @@ def test_joint_state_layout_reads_what_rclpy_wrote(names, n_vel):
     for k in ("position", "velocity", "effort"):
         np.testing.assert_array_equal(f[k], getattr(js, k))
     assert joint_state_layout(buf, got_names)[0] is got_names      # the name list skipped by a compare
+
+
+def test_message_reader_keeps_a_layout_while_only_the_numbers_change():
+    """A stream from one publisher (a preallocated message patched in place, as the nodes send) keeps
+    its first layout; other strings (names, frame id, of the same length or not) get a new one.  (A
+    compare that also sees the CDR padding: rclpy's serialisation does not always zero it, which
+    only costs a new layout.)"""
+    read = MessageReader(motor_command_layout)
+    raw = RawMessage(MotorCommand(name=["a", "b"], effort=[0.0, 0.0]), motor_command_layout)
+    first = None
+    for step, effort in ((7, [1.0, 2.0]), (123_456, [-3.0, 4.5]), (8, [0.5, 0.25])):
+        raw.stamp(step * 500_000)
+        raw.fields["step"][0], raw.fields["effort"][:] = step, effort
+        f = read(raw.data())
+        first = first or read._layout
+        assert read._layout is first and read.names[0] == ["a", "b"]
+        assert list(f["effort"]) == effort and f["step"][0] == step
+
+    def cmd(names, effort, frame):
+        m = MotorCommand(name=names, effort=effort, step=9)
+        m.header.frame_id = frame
+        return bytes(serialize_message(m))
+    for names, effort, frame in ((["c", "d"], [5.0, 6.0], ""),            # other names, same length
+                                 (["a", "b"], [5.0, 6.0], "w"),           # another frame id
+                                 (["a", "bb"], [5.0, 6.0], ""),           # longer
+                                 (["a", "b", "c"], [5.0, 6.0, 7.0], "")):  # more
+        f = read(cmd(names, effort, frame))
+        assert read.names[0] == names and list(f["effort"]) == effort and f["step"][0] == 9
 
 
 def test_raw_messages_deserialize_as_rclpy_messages():

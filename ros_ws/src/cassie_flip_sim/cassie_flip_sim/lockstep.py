@@ -240,6 +240,37 @@ def fields(buf, layout):
     return {k: np.frombuffer(buf, dtype, n, off) for k, (off, n, dtype) in layout.items()}
 
 
+class MessageReader:
+    """Numpy views of the numeric fields of received serialized messages of one type (``layout``: a
+    ``*_layout`` function).  The layout is worked out again only when a message differs from the
+    last one outside its numeric fields and stamp, i.e. in its strings or sequence lengths: a 2 kHz
+    stream from one publisher keeps the layout of its first message (a byte compare a message,
+    instead of walking it).  ``names`` is the string[] of the last layout (as the layout function
+    gives it)."""
+
+    def __init__(self, layout):
+        self._layout_fn = layout
+        self.names = None
+        self._size = -1
+        self._const = ()         # (start, end, bytes) of the runs outside the numeric fields and stamp
+        self._layout = None
+
+    def __call__(self, buf):
+        if len(buf) != self._size or any(buf[a:b] != c for a, b, c in self._const):
+            self.names, self._layout = self._layout_fn(buf, self.names)
+            self._size = len(buf)
+            variable = sorted([(4, 12)] + [(off, off + n * dt.itemsize) for off, n, dt in self._layout.values()])
+            runs, pos = [], 0
+            for a, b in variable:
+                if a > pos:
+                    runs.append((pos, a, bytes(buf[pos:a])))
+                pos = max(pos, b)
+            if pos < len(buf):
+                runs.append((pos, len(buf), bytes(buf[pos:])))
+            self._const = tuple(runs)
+        return fields(buf, self._layout)
+
+
 class RawMessage:
     """A message serialized once and published as bytes: its stamp and the fields a ``*_layout``
     function finds are patched in place (numpy views) before each publish."""

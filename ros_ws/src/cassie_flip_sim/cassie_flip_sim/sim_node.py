@@ -30,7 +30,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from .lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage, SubscriptionSet, cpu_per_step_line, fields,
+from .lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet, cpu_per_step_line,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
                        odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
 from .node_stop import run_until_stopped
@@ -143,7 +143,7 @@ class SimNode:
         odom = Odometry(child_frame_id='pelvis')
         odom.header.frame_id = 'world'
         self.msg_odom = RawMessage(odom, odometry_layout)
-        self.cmd_names = None       # the commands' motor names, as motor_command_layout gives them
+        self.read_command = MessageReader(motor_command_layout)
 
     def _publish_clock(self, k):
         self.msg_clock.stamp(k * self.dt_ns)
@@ -211,8 +211,7 @@ class SimNode:
             if topic == '/fslip/reference':
                 self._note_reference(msg)
                 continue
-            self.cmd_names, layout = motor_command_layout(msg, self.cmd_names)
-            f = fields(msg, layout)
+            f = self.read_command(msg)
             out.append((int(f['step'][0]), f['effort']))
         return out
 

@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 import rclpy
-from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, RawMessage,
-                                      SubscriptionSet, cpu_per_step_line, fields, joint_state_layout,
+from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
+                                      SubscriptionSet, cpu_per_step_line, joint_state_layout,
                                       motor_command_layout, odometry_layout,
                                       pin_to_lockstep_cpu, read_stamp_ns, stamp_to_ns)
 from cassie_flip_sim.node_stop import run_until_stopped
@@ -57,7 +57,7 @@ class TscNode:
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
                               motor_command_layout)
         self.js = self.odom = None          # the newest serialized /joint_states and /odom
-        self.js_names = None
+        self.read_js, self.read_odom = MessageReader(joint_state_layout), MessageReader(odometry_layout)
         self.answered_ns = -1
         self.tick_us = []
         self.cpu0 = None            # (process, main thread) CPU time at the first tick
@@ -82,11 +82,9 @@ class TscNode:
 
     def _state(self):
         """(q, v) from the serialized /joint_states and /odom."""
-        self.js_names, layout = joint_state_layout(self.js, self.js_names)
-        js = fields(self.js, layout)
-        od = fields(self.odom, odometry_layout(self.odom)[1])
+        js, od = self.read_js(self.js), self.read_odom(self.odom)
         pose, twist = od['pose'], od['twist']
-        return self.controller.model_info.from_ros(self.js_names[0], js['position'], js['velocity'],
+        return self.controller.model_info.from_ros(self.read_js.names[0], js['position'], js['velocity'],
                                                    pose[:3], pose[3:], twist[:3], twist[3:])
 
     def _answer(self, k_ns):
