@@ -47,8 +47,8 @@ WATCHDOG_DAMPING = 5.0
 #: wall time without a command before the state is sent again and the silence is reported
 COMMAND_RESEND_S = 0.05
 #: default rate of /clock, Hz: sim time for the nodes that run on it (use_sim_time), not the lockstep's
-#: step (each state carries its own stamp); every step, each of its subscribers (recorder, planner,
-#: `flip`) cost the simulator's loop ~15 us of the shared CPU (scripts/bench_graph.py)
+#: step (each state carries its own stamp); at every step its three subscribers (recorder, planner,
+#: `flip`) cost the simulator's loop ~30 us of the CPU it shares with the controller (bench_graph.py)
 CLOCK_RATE_HZ = 200.0
 #: once the subscribers have matched the simulator's publishers, the wall time left for their side
 #: of the match before the first step (a best-effort reader drops what comes before it matches)
