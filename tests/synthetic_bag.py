@@ -49,9 +49,11 @@ def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=
 
 
 def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_at: float | None = None,
-                   **kw) -> dict:
+                   resent_tail: int = 0, **kw) -> dict:
     """Write the bag; returns the trajectory that was written. `contact_events=False` leaves
-    /contact_events out; `body_contact_at=T` adds a BODY_CONTACT event (left_knee) at sim time T."""
+    /contact_events out; `body_contact_at=T` adds a BODY_CONTACT event (left_knee) at sim time T;
+    `resent_tail=N` adds N copies of the last /odom, 50 ms of wall time apart, after the last step
+    (what a lockstep simulator re-sends while its stopped controller does not answer)."""
     tr = trajectory(**kw)
     store = flip_typestore()
     T = store.types
@@ -115,6 +117,10 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
                                             angular=V3(x=ang_b[0], y=ang_b[1], z=ang_b[2])),
                                 covariance=np.zeros(36)))
             put(c_odom, t[k], od, "nav_msgs/msg/Odometry")
+            if k == len(t) - 1:
+                for j in range(1, resent_tail + 1):
+                    w.write(c_odom, wall0 + int(t[k] / rtf * 1e9) + j * 50_000_000,
+                            store.serialize_cdr(od, "nav_msgs/msg/Odometry"))
             fw_speed = -20.0 * wy[k]
             put(c_js, t[k], JS(header=hdr, name=["left_knee", "flywheel"], position=np.array([-1.2, 0.0]),
                                velocity=np.array([0.0, fw_speed]), effort=np.array([3.0, -2.0 * wy[k]])),

@@ -140,7 +140,10 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
         s["sim_time_start_s"] = _f(st[0])
         s["sim_time_end_s"] = _f(st[-1])
         s["sim_duration_s"] = _f(st[-1] - st[0])
-        wall = tl[-1] - tl[0]
+        # from the first arrival of the first step to the first arrival of the last one: a lockstep
+        # simulator whose controller has stopped re-sends its last state every 50 ms until it is
+        # stopped itself, and those copies are not stepping time
+        wall = float(np.min(tl[st == st[-1]]) - np.min(tl[st == st[0]]))
         s["clock_wall_s"] = _f(wall, 3)
         s["real_time_factor"] = _f((st[-1] - st[0]) / wall, 3) if wall > 0 else None
         s["sim_time_source"] = topic
