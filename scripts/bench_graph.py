@@ -73,14 +73,15 @@ def cpu_per_step_us(log: Path) -> dict:
 
 
 def recorded_fraction(bag: Path) -> str:
-    """'odom/joint_states' fractions of the stepped steps (first to last /clock: sim_node publishes
-    the first and the last step's) that the bag holds."""
+    """'odom/joint_states' fractions of the stepped steps (from the first to the last step that
+    /clock, /odom or /joint_states carries) that the bag holds."""
     import numpy as np
     from flip_tools.bag import load_bag
     data = load_bag(bag, ["/clock", "/odom", "/joint_states"])
-    clock = np.round(data["/clock"]["sim_t"] / 0.0005)
-    n = clock.max() - clock.min() + 1
-    return "/".join(f"{len(np.unique(np.round(data[t]['t'] / 0.0005))) / n:.4f}" for t in ("/odom", "/joint_states"))
+    steps = {t: np.unique(np.round(data[t][k] / 0.0005))
+             for t, k in (("/clock", "sim_t"), ("/odom", "t"), ("/joint_states", "t"))}
+    n = max(v.max() for v in steps.values()) - min(v.min() for v in steps.values()) + 1
+    return "/".join(f"{len(steps[t]) / n:.4f}" for t in ("/odom", "/joint_states"))
 
 
 def main() -> int:
