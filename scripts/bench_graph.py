@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
-measured over the stepping loop from the bag's /clock log times (wall-clock receive times), start-up
-reported apart, with the fraction of the steps' /odom and /joint_states messages the bag holds (a
+measured over the stepping loop from the bag's /odom log times (wall-clock receive times, first step
+to last; summary.json's real_time_factor), start-up reported apart, with the fraction of the steps' /odom and /joint_states messages the bag holds (a
 lockstep run must lose none).  Prints a table, a second one with the simulator's loop per step (its log:
 simulate, publish the state, wait for the controller's command, planner holds, rest), and a third
 with the CPU time per step of the simulator's and the controller's processes (their logs: main
