@@ -1,6 +1,6 @@
 """The lean lockstep transport (cassie_flip_sim.lockstep): serialized-message layouts against
 rclpy's own (de)serialisation, and `flip stand` (sim_node <-> tsc_node in lockstep, recorded):
-every step's /clock, /odom and /joint_states in the bag even when the recorder stalls (SIGSTOP)
+every step's /odom and /joint_states (and /clock at its 200 Hz) in the bag even when the recorder stalls (SIGSTOP)
 for half a second, log times = wall-clock receive times, and two runs with the controller in the
 loop give the same states to the bit."""
 import os
