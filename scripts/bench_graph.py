@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Whole-graph speed: `flip run` with every node in its own process (lockstep), the real-time factor
 measured over the stepping loop from the bag's /odom log times (wall-clock receive times, first step
-to last; summary.json's real_time_factor), start-up reported apart, with the fraction of the steps' /odom and /joint_states messages the bag holds (a
-lockstep run must lose none).  Prints a table, a second one with the simulator's loop per step (its log:
-simulate, publish the state, wait for the controller's command, planner holds, rest), and a third
+to last; summary.json's real_time_factor), start-up reported apart, with the fraction of the steps'
+/odom and /joint_states messages the bag holds (a lockstep run must lose none).  Prints a table, a
+second one with the simulator's loop per step (its log: simulate, publish the state, wait for the
+controller's command, planner holds, rest), and a third
 with the CPU time per step of the simulator's and the controller's processes (their logs: main
 thread, and the middleware's threads), which share one CPU: their sum against the wall time per step
 tells whether the loop waits (wake-ups, hand-overs) or computes.  The machine's load average is
@@ -46,9 +47,8 @@ def one_run(kind: str, out: Path, extra: list[str]) -> dict:
             "recorded": recorded_fraction(out / "bag"), "load": os.getloadavg()[0], "process_total_s": total}
 
 
-def sim_loop_us(log: Path, marker: str = "loop per step (mean us): ") -> dict:
-    """{part: mean us per step} from sim_node's 'loop per step (mean us): name value, ...' line (or
-    another line of that form)."""
+def log_line_us(log: Path, marker: str) -> dict:
+    """{name: value} from the last '<marker>name value, name value, ...' line of a node's log."""
     try:
         text = log.read_text(errors="replace")
     except OSError:
@@ -66,10 +66,15 @@ def sim_loop_us(log: Path, marker: str = "loop per step (mean us): ") -> dict:
     return out
 
 
+def sim_loop_us(log: Path) -> dict:
+    """{part: mean us per step} from sim_node's 'loop per step (mean us): name value, ...' line."""
+    return log_line_us(log, "loop per step (mean us): ")
+
+
 def cpu_per_step_us(log: Path) -> dict:
     """{'main thread': us, 'other threads': us} per step from a node's 'cpu per step (mean us): ...' line
     (cassie_flip_sim.lockstep.cpu_per_step_line)."""
-    return sim_loop_us(log, "cpu per step (mean us): ")
+    return log_line_us(log, "cpu per step (mean us): ")
 
 
 def recorded_fraction(bag: Path) -> str:
