@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Debian packages the project needs: a C/C++ toolchain (flip_msgs generation) and GL libraries
-# for offscreen rendering (MuJoCo with MUJOCO_GL=egl or osmesa). Installs only what is missing.
+# Debian packages the project needs: a C/C++ toolchain (flip_msgs generation, the compiled tick and
+# step), GL libraries for offscreen rendering (MuJoCo with MUJOCO_GL=egl or osmesa) and Debian's
+# python3.11 with venv and headers, the interpreter of the project's venv (Makefile, PY_BOOT).
+# Installs only what is missing.
 set -euo pipefail
 need=()
-for pkg in g++ make libegl1 libgl1 libosmesa6; do
+for pkg in g++ make libegl1 libgl1 libosmesa6 python3.11 python3.11-venv python3.11-dev; do
   dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
 done
 [ ${#need[@]} -eq 0 ] && exit 0

@@ -97,6 +97,49 @@ def test_raw_messages_deserialize_as_rclpy_messages():
     assert (c.sec, c.nanosec) == (2, 500)
 
 
+def test_subscription_set_takes_each_queued_message_once(test_node):
+    """SubscriptionSet.wait: every message of a latched (depth 10) topic, in order; the newest of a
+    depth-1 stream, once; a topic outside ``on`` taken when another wakes the wait; a message that
+    comes after a wait returned is there at the next one."""
+    import rclpy
+    from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet
+    from std_msgs.msg import String
+    node = rclpy.create_node("subscription_set_test", context=test_node.context)
+    subs = SubscriptionSet(node, [(String, "/s", STREAM_QOS), (String, "/l", LATCHED_QOS),
+                                  (String, "/quiet", LATCHED_QOS)], raw=("/s",))
+    pub_s = test_node.node.create_publisher(String, "/s", STREAM_QOS)
+    pub_l = test_node.node.create_publisher(String, "/l", LATCHED_QOS)
+    try:
+        deadline = time.monotonic() + 10.0
+        while pub_s.get_subscription_count() < 1 or pub_l.get_subscription_count() < 1:
+            assert time.monotonic() < deadline, "subscriptions did not match"
+            time.sleep(0.01)
+        time.sleep(0.2)
+
+        def collect(on, until, timeout=5.0):
+            got, end = [], time.monotonic() + timeout
+            while not until(got) and time.monotonic() < end:
+                got += subs.wait(0.1, on=on)
+            return got
+        for i in range(3):
+            pub_l.publish(String(data=f"l{i}"))
+        time.sleep(0.2)                        # the latched ones are queued before the stream wakes
+        for i in range(3):
+            pub_s.publish(String(data=f"s{i}"))
+        got = collect(("/s",), lambda g: any(t == "/s" for t, _ in g))
+        latched = [m.data for t, m in got if t == "/l"]
+        stream = [deserialize_message(m, String).data for t, m in got if t == "/s"]
+        assert latched == ["l0", "l1", "l2"]
+        assert stream == ["s2"]                                # depth 1: the newest, once
+        assert subs.wait(0.05, on=("/s",)) == [] and not subs.interrupted
+        pub_l.publish(String(data="l3"))
+        got = collect(None, lambda g: len(g) > 0)
+        assert [(t, m.data) for t, m in got] == [("/l", "l3")]
+    finally:
+        subs.destroy()
+        node.destroy_node()
+
+
 def _recorder_pid(out):
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:

@@ -74,7 +74,9 @@ class SubscriptionSet:
 
     ``wait(timeout_s)`` blocks until at least one subscription has data (or the timeout, or
     SIGINT) and returns the list of ``(topic, message)`` taken, in subscription order. Topics in
-    ``raw`` are taken as serialized bytes.
+    ``raw`` are taken as serialized bytes. A subscription of depth 1 (the per-step streams) holds
+    at most one message and is taken once; a subscription in the wait set that the wait did not
+    find ready is not taken at all (an empty take costs as much as a wait).
     """
 
     def __init__(self, node, subscriptions, raw=()):
@@ -83,6 +85,11 @@ class SubscriptionSet:
         self._subs = [node.create_subscription(t, topic, _ignore, qos, raw=topic in raw)
                       for t, topic, qos in subscriptions]
         self._topics = [topic for _, topic, _ in subscriptions]
+        # (topic, subscription, its rcl pointer, take at most one message)
+        self._entries = [(topic, sub, sub.handle.pointer,
+                          qos.history == HistoryPolicy.KEEP_LAST and qos.depth == 1)
+                         for (_, topic, qos), sub in zip(subscriptions, self._subs)]
+        self._waited = {}            # `on` -> (entries in the wait set, pointers of those)
         self._sigint = SignalHandlerGuardCondition(context=node.context)
         self._wait_set = _rclpy.WaitSet(len(self._subs), 1, 0, 0, 0, 0, node.context.handle)
         self.interrupted = False
@@ -90,28 +97,44 @@ class SubscriptionSet:
     def subscription(self, topic):
         return self._subs[self._topics.index(topic)]
 
-    def take_all(self):
-        """Every message already queued, without waiting."""
+    def _take(self, skip=()):
         out = []
-        for topic, sub in zip(self._topics, self._subs):
+        for topic, sub, ptr, single in self._entries:
+            if ptr in skip:
+                continue
+            if single:
+                got = sub.handle.take_message(sub.msg_type, sub.raw)
+                if got is not None:
+                    out.append((topic, got[0]))
+                continue
             while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                 out.append((topic, got[0]))
         return out
 
+    def take_all(self):
+        """Every message already queued, without waiting."""
+        return self._take()
+
     def wait(self, timeout_s, on=None):
         """Block until a message is queued on one of the topics ``on`` (default: every one), then
-        take what is queued on every subscription (e.g. wake on the last message of a step only)."""
+        take what is queued (e.g. wake on the last message of a step only): the subscriptions
+        outside ``on`` are taken from unconditionally, those in it when the wait found them ready."""
+        key = None if on is None else tuple(on)
+        waited = self._waited.get(key)
+        if waited is None:
+            entries = [e for e in self._entries if on is None or e[0] in on]
+            waited = self._waited[key] = (entries, frozenset(e[2] for e in entries))
         ws = self._wait_set
         ws.clear_entities()
-        for topic, sub in zip(self._topics, self._subs):
-            if on is None or topic in on:
-                ws.add_subscription(sub.handle)
+        for e in waited[0]:
+            ws.add_subscription(e[1].handle)
         ws.add_guard_condition(self._sigint.handle)
         ws.wait(int(timeout_s * 1e9) if timeout_s is not None and timeout_s >= 0 else -1)
         if ws.get_ready_entities('guard_condition'):
             self.interrupted = True
             return []
-        return self.take_all()
+        ready = ws.get_ready_entities('subscription')
+        return self._take(waited[1].difference(ready) if len(ready) < len(waited[0]) else ())
 
     def destroy(self):
         self._sigint.destroy()
