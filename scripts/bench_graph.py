@@ -79,14 +79,24 @@ def cpu_per_step_us(log: Path) -> dict:
 
 def recorded_fraction(bag: Path) -> str:
     """'odom/joint_states' fractions of the stepped steps (from the first to the last step that
-    /clock, /odom or /joint_states carries) that the bag holds."""
+    /clock, /odom or /joint_states carries) that the bag holds, and the steps either topic misses
+    (up to three each, 'last' for the final step: a simulator stopped between its /odom and its
+    /joint_states)."""
     import numpy as np
     from flip_tools.bag import load_bag
     data = load_bag(bag, ["/clock", "/odom", "/joint_states"])
-    steps = {t: np.unique(np.round(data[t][k] / 0.0005))
+    steps = {t: np.unique(np.round(data[t][k] / 0.0005)).astype(int)
              for t, k in (("/clock", "sim_t"), ("/odom", "t"), ("/joint_states", "t"))}
-    n = max(v.max() for v in steps.values()) - min(v.min() for v in steps.values()) + 1
-    return "/".join(f"{len(steps[t]) / n:.4f}" for t in ("/odom", "/joint_states"))
+    lo, hi = min(v.min() for v in steps.values()), max(v.max() for v in steps.values())
+    n = hi - lo + 1
+    out = "/".join(f"{len(steps[t]) / n:.4f}" for t in ("/odom", "/joint_states"))
+    missing = []
+    for t in ("/odom", "/joint_states"):
+        gone = np.setdiff1d(np.arange(lo, hi + 1), steps[t])
+        if gone.size:
+            shown = ", ".join("last" if k == hi else str(k) for k in gone[:3])
+            missing.append(f"{t[1:]} {gone.size} missing: {shown}{' ...' if gone.size > 3 else ''}")
+    return out + (f" ({'; '.join(missing)})" if missing else "")
 
 
 def main() -> int:
