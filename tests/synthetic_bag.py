@@ -49,11 +49,12 @@ def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=
 
 
 def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_at: float | None = None,
-                   resent_tail: int = 0, **kw) -> dict:
+                   resent_tail: int = 0, drop_joint_states=(), **kw) -> dict:
     """Write the bag; returns the trajectory that was written. `contact_events=False` leaves
     /contact_events out; `body_contact_at=T` adds a BODY_CONTACT event (left_knee) at sim time T;
     `resent_tail=N` adds N copies of the last /odom, 50 ms of wall time apart, after the last step
-    (what a lockstep simulator re-sends while its stopped controller does not answer)."""
+    (what a lockstep simulator re-sends while its stopped controller does not answer);
+    `drop_joint_states` = sample indices whose /joint_states is left out (-1: the last)."""
     tr = trajectory(**kw)
     store = flip_typestore()
     T = store.types
@@ -71,6 +72,7 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
         return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
     t, x, z, th = tr["t"], tr["x"], tr["z"], tr["th"]
+    dropped = {k % len(t) for k in drop_joint_states}
     dt = t[1] - t[0]
     vx, vz, wy = np.gradient(x, dt), np.gradient(z, dt), np.gradient(th, dt)
     yaw = tr["yaw"]
@@ -122,9 +124,10 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
                     w.write(c_odom, wall0 + int(t[k] / rtf * 1e9) + j * 50_000_000,
                             store.serialize_cdr(od, "nav_msgs/msg/Odometry"))
             fw_speed = -20.0 * wy[k]
-            put(c_js, t[k], JS(header=hdr, name=["left_knee", "flywheel"], position=np.array([-1.2, 0.0]),
-                               velocity=np.array([0.0, fw_speed]), effort=np.array([3.0, -2.0 * wy[k]])),
-                "sensor_msgs/msg/JointState")
+            if k not in dropped:
+                put(c_js, t[k], JS(header=hdr, name=["left_knee", "flywheel"], position=np.array([-1.2, 0.0]),
+                                   velocity=np.array([0.0, fw_speed]), effort=np.array([3.0, -2.0 * wy[k]])),
+                    "sensor_msgs/msg/JointState")
             eff = np.array([1.0 * i for i in range(10)] + [-2.0 * wy[k]])
             put(c_mc, t[k], MC(header=hdr, step=k, name=MOTORS, effort=eff,
                                compute_time_us=np.float32(100.0 + (k % 100))), "flip_msgs/msg/MotorCommand")

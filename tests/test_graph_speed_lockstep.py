@@ -209,3 +209,21 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
         _, ib = np.unique(b[topic]["t"], return_index=True)
         for k in keys:                                                  # the controller in the loop, bit for bit
             np.testing.assert_array_equal(a[topic][k][ia], b[topic][k][ib])
+
+
+def test_bench_graph_names_the_steps_a_bag_misses(tmp_path):
+    """bench_graph's recorded column: fractions of the stepped steps per topic, and which steps a
+    topic misses ('last' for the final step), from the bag alone."""
+    import importlib.util
+
+    from synthetic_bag import write_flip_bag
+    spec = importlib.util.spec_from_file_location("bench_graph", FLIP.parent / "bench_graph.py")
+    bench_graph = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_graph)
+    kw = dict(dt=0.0005, t_stand=0.2, t_rest=0.1, flight_time=0.3)
+    write_flip_bag(tmp_path / "whole", **kw)
+    assert bench_graph.recorded_fraction(tmp_path / "whole") == "1.0000/1.0000"
+    write_flip_bag(tmp_path / "holes", drop_joint_states=(7, 8, -1), **kw)
+    got = bench_graph.recorded_fraction(tmp_path / "holes")
+    n = round((0.2 + 0.3 + 0.3 + 0.4 + 0.1) / 0.0005) + 1           # the synthetic run's steps
+    assert got == f"1.0000/{(n - 3) / n:.4f} (joint_states 3 missing: 7, 8, last)", got
