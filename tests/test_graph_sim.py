@@ -1,9 +1,12 @@
 """`flip sim` through the real sim_node (lockstep, zero torques), recorded: /clock on the 0.5 ms step
 grid, /joint_states with the flywheel, /odom; two runs record the same messages (log times aside)."""
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
@@ -33,3 +36,23 @@ def test_flip_sim_records_the_contract_topics_and_is_deterministic(tmp_path):
         for k in keys:
             np.testing.assert_array_equal(a[topic][k][ia], b[topic][k][ib])
     assert a["/odom"]["pos"][-1, 2] < a["/odom"]["pos"][0, 2]          # sinking under zero torque
+
+
+@pytest.mark.parametrize("sim_io", [True, False], ids=["rcl", "python"])
+def test_lockstep_simulator_ignores_bad_commands_and_resends(ros_graph, sim_io):
+    """sim_node in lockstep against a controller that answers one step with 2 torques, then with
+    bytes that are no MotorCommand, then with an answer to an earlier step: each is ignored (the
+    wrong size and the garbage with a log line) and the state sent again, the third re-send's answer
+    is taken and the run ends after all its steps (rcl's C API and rclpy alike)."""
+    from ros_harness import python_node_cmd, NODES_DIR
+    from flip_tools.launcher import ros_args
+    ros_graph.start("controller", python_node_cmd(NODES_DIR / "awkward_controller_node.py"), node_name="tsc_node")
+    ros_graph.start("sim", [str(Path(sys.executable).parent / "sim_node")]
+                    + ros_args(params={"duration": 0.005, "rcl_io": sim_io}), node_name="sim_node")
+    r = ros_graph.launcher.wait_exit("sim", 120)
+    log = (ros_graph.log_dir / "sim.log").read_text()
+    assert r == 0, log
+    assert "/motor_command for step 3 has 2 torques, not 11: ignored" in log
+    assert "1 /motor_command messages that are not MotorCommand CDR ignored" in log
+    m = re.search(r"done: (\d+) steps.*state re-sent (\d+) times", log)
+    assert m and int(m.group(1)) == 10 and int(m.group(2)) >= 3, log

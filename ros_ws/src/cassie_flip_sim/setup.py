@@ -1,8 +1,12 @@
 """ament_python package cassie_flip_sim: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv.
 
 The simulator's per-step work (cassie_flip_sim._native, native/step.cpp) is a pybind11 extension on
-the MuJoCo C API: the headers and library of the mujoco wheel."""
+the MuJoCo C API: the headers and library of the mujoco wheel.  sim_node's per-step messages
+(cassie_flip_sim._rcl_io, native/rcl_io.cpp) are one on rcl's C API: the headers and libraries of
+the ROS wheels in the venv (or of the ROS install on AMENT_PREFIX_PATH)."""
 import importlib.util
+import os
+import sys
 from glob import glob
 from pathlib import Path
 
@@ -40,6 +44,32 @@ def native_extension():
     )
 
 
+def ros_prefix() -> Path:
+    """The prefix holding rcl's headers and library: the venv (ROS wheels) or a ROS install."""
+    for p in [sys.prefix] + os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if p and (Path(p) / "include" / "rcl" / "rcl" / "rcl.h").is_file() and (Path(p) / "lib" / "librcl.so").is_file():
+            return Path(p)
+    raise RuntimeError("cassie_flip_sim: no rcl headers and library (include/rcl/rcl/rcl.h, lib/librcl.so) "
+                       f"in {sys.prefix} or on AMENT_PREFIX_PATH")
+
+
+def rcl_extension():
+    p = ros_prefix()
+    # Jazzy's layout: include/<package>/<package>/*.h
+    inc = [str(d) for d in sorted((p / "include").iterdir())
+           if d.is_dir() and (d / d.name).is_dir() and not d.name.startswith("python")]
+    return Pybind11Extension(
+        f"{package_name}._rcl_io",
+        ["cassie_flip_sim/native/rcl_io.cpp"],
+        include_dirs=inc,
+        library_dirs=[str(p / "lib")],
+        libraries=["rcl", "rmw", "rcutils"],
+        extra_link_args=[f"-Wl,-rpath,{p / 'lib'}"],
+        extra_compile_args=["-O2"],
+        cxx_std=17,
+    )
+
+
 setup(
     name=package_name,
     version="0.1.0",
@@ -50,7 +80,7 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     package_data={package_name: ["data/*.json"]},
-    ext_modules=[native_extension()],
+    ext_modules=[native_extension(), rcl_extension()],
     cmdclass={"build_ext": build_ext},
     install_requires=["setuptools"],
     zip_safe=False,

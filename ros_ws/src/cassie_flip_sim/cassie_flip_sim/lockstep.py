@@ -97,6 +97,11 @@ class SubscriptionSet:
     def subscription(self, topic):
         return self._subs[self._topics.index(topic)]
 
+    @property
+    def sigint_guard(self):
+        """The guard condition SIGINT triggers (rclpy's), which every wait includes."""
+        return self._sigint
+
     def _take(self, skip=()):
         out = []
         for topic, sub, ptr, single in self._entries:

@@ -17,6 +17,7 @@ counting late and missing ones; a silent controller gets motor damping), and ``c
 """
 from __future__ import annotations
 
+import struct
 import sys
 import time
 
@@ -30,6 +31,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from . import _rcl_io
 from .lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet, cpu_per_step_line,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
                        odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
@@ -92,6 +94,9 @@ class SimNode:
         # subscribers (besides a lockstep controller) to wait for before the first step, e.g. a
         # recorder: best-effort messages sent before a reader has matched are lost
         self.min_subscribers = int(_declare(n, 'min_subscribers', 0))
+        # lockstep: publish the state and wait for the command through rcl's C API (_rcl_io) instead
+        # of rclpy's Python (the same messages; false: the Python path, e.g. to compare the two)
+        self.rcl_io = bool(_declare(n, 'rcl_io', True))
         if self.mode not in ('lockstep', 'realtime'):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
         if self.controller not in ('tsc', 'none'):
@@ -133,6 +138,11 @@ class SimNode:
         self.resends = 0
         self.reset_requested = False
         self.body_contact = False
+        self.command_wait = None        # _rcl_io.CommandWait of a lockstep run (rcl_io)
+        self.malformed_commands = 0     # /motor_command messages that were no MotorCommand (Python path)
+        self._u_in = np.zeros(11)       # the command it reads
+        self._ptr = {name: pub.handle.pointer for name, pub in
+                     (('odom', self.pub_odom), ('js', self.pub_js), ('clock', self.pub_clock))}
 
     # -- messages ----------------------------------------------------------------------------
     def _prealloc_messages(self):
@@ -146,18 +156,25 @@ class SimNode:
         self.read_command = MessageReader(motor_command_layout)
 
     def _publish_clock(self, k):
-        self.msg_clock.stamp(k * self.dt_ns)
-        self.pub_clock.publish(self.msg_clock.data())
+        if self.rcl_io:
+            _rcl_io.publish(self._ptr['clock'], self.msg_clock.buf, k * self.dt_ns)
+        else:
+            self.msg_clock.stamp(k * self.dt_ns)
+            self.pub_clock.publish(self.msg_clock.data())
         self.clock_k = k
 
     def _publish_state(self, k):
         ns = k * self.dt_ns
-        for m in (self.msg_odom, self.msg_js):
-            m.stamp(ns)
         js, od = self.msg_js.fields, self.msg_odom.fields
         self.sim.state_into(js['position'], js['velocity'], js['effort'], od['pose'], od['twist'])
         if k % self.clock_every == 0 and k != self.clock_k:
             self._publish_clock(k)
+        if self.rcl_io:
+            _rcl_io.publish(self._ptr['odom'], self.msg_odom.buf, ns)
+            _rcl_io.publish(self._ptr['js'], self.msg_js.buf, ns)
+            return
+        for m in (self.msg_odom, self.msg_js):
+            m.stamp(ns)
         self.pub_odom.publish(self.msg_odom.data())
         self.pub_js.publish(self.msg_js.data())
 
@@ -211,7 +228,11 @@ class SimNode:
             if topic == '/fslip/reference':
                 self._note_reference(msg)
                 continue
-            f = self.read_command(msg)
+            try:
+                f = self.read_command(msg)
+            except (ValueError, IndexError, struct.error):       # not a MotorCommand's CDR
+                self.malformed_commands += 1
+                continue
             out.append((int(f['step'][0]), f['effort']))
         return out
 
@@ -276,6 +297,10 @@ class SimNode:
             while time.monotonic() < settled and rclpy.ok():
                 self.executor.spin_once(timeout_sec=0.01)
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
+        if self.rcl_io and self.mode == 'lockstep' and self.controller == 'tsc':
+            self.command_wait = _rcl_io.CommandWait(
+                self.node.context.handle.pointer, self.subs.subscription('/motor_command').handle.pointer,
+                self.subs.subscription('/fslip/reference').handle.pointer, self.subs.sigint_guard.handle.pointer)
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
                  f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m')
@@ -352,6 +377,9 @@ class SimNode:
                      f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
                      + (f'; realtime: {late} late steps, {missing} steps without a new command'
                         if self.mode == 'realtime' else ''))
+            malformed = self.malformed_commands + (self.command_wait.malformed if self.command_wait else 0)
+            if malformed:
+                log.warn(f'{malformed} /motor_command messages that are not MotorCommand CDR ignored')
             if k:
                 per = {name: 1e6 * v / k for name, v in spent.items()}
                 per['planner holds'] = 1e6 * sum(self.hold_times) / k
@@ -360,7 +388,14 @@ class SimNode:
                 log.info(cpu_per_step_line(cpu0, k))
         return 0
 
+    def _take_references(self):
+        sub = self.subs.subscription('/fslip/reference')
+        while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+            self._note_reference(got[0])
+
     def _wait_command(self, k):
+        if self.command_wait is not None:
+            return self._wait_command_rcl(k)
         t_sent = time.monotonic()
         warned = False
         while True:
@@ -378,6 +413,39 @@ class SimNode:
                 self.executor.spin_once(timeout_sec=0.0)
 
 
+    def _wait_command_rcl(self, k):
+        """_wait_command through _rcl_io.CommandWait: the torques of step k (a view of the command
+        buffer), or None when interrupted."""
+        cw, u = self.command_wait, self._u_in
+        t_first = t_sent = time.monotonic()
+        warned = False
+        while True:
+            left = COMMAND_RESEND_S - (time.monotonic() - t_sent)
+            status = cw.wait(k, max(int(left * 1e9), 0), u)
+            if status == cw.GOT:
+                return u
+            if status == cw.INTERRUPTED or not rclpy.ok():
+                self.subs.interrupted = True
+                return None
+            if status == cw.REFERENCE:
+                self._take_references()
+            elif status == cw.WRONG_SIZE:
+                self.node.get_logger().error(
+                    f'/motor_command for step {k} has {cw.last_count} torques, not 11: ignored')
+            else:                                          # TIMEOUT: send the state again
+                self.resends += 1
+                if not warned and time.monotonic() - t_first > 1.0:
+                    self.node.get_logger().warn(f'controller silent for step {k}: waiting')
+                    warned = True
+                self._publish_state(k)
+                self.executor.spin_once(timeout_sec=0.0)
+                t_sent = time.monotonic()
+
+    def close_io(self):
+        if self.command_wait is not None:
+            self.command_wait.close()
+
+
 def main(args=None):
     pin_to_lockstep_cpu()
     rclpy.init(args=args)
@@ -388,6 +456,7 @@ def main(args=None):
         rclpy.try_shutdown()
         return 2
     def close():
+        node.close_io()
         node.subs.destroy()
         node.node.destroy_node()
         node.srv_node.destroy_node()

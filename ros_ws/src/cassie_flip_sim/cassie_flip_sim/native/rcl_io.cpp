@@ -1,0 +1,221 @@
+// cassie_flip_sim._rcl_io: the simulator node's per-step messages on rcl's C API (the rcl of the
+// rclpy wheel), without the Python around rclpy's publish, wait set and take.
+//
+// The publishers, subscriptions, guard condition and context are rclpy's (their `pointer`s): rclpy
+// creates and destroys them; this module only uses them in between (``CommandWait.close()`` before
+// the subscriptions are destroyed).  Messages stay serialized (CDR) as in cassie_flip_sim.lockstep.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <rcl/error_handling.h>
+#include <rcl/publisher.h>
+#include <rcl/subscription.h>
+#include <rcl/wait.h>
+#include <rmw/serialized_message.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace py = pybind11;
+
+namespace {
+
+template <typename T>
+T *from_address(std::uintptr_t p) {
+  if (p == 0) throw std::invalid_argument("null rcl handle");
+  return reinterpret_cast<T *>(p);
+}
+
+[[noreturn]] void rcl_fail(const char *what) {
+  std::string e = rcl_get_error_string().str;
+  rcl_reset_error();
+  throw std::runtime_error(std::string(what) + ": " + e);
+}
+
+// Publish a serialized message from a buffer (no copy); with stamp_ns >= 0 its header stamp (the CDR
+// bytes 4..12: int32 sec, uint32 nanosec) is written first.
+void publish(std::uintptr_t publisher, py::buffer buf, std::int64_t stamp_ns) {
+  py::buffer_info info = buf.request(stamp_ns >= 0);
+  auto *data = static_cast<std::uint8_t *>(info.ptr);
+  const std::size_t n = static_cast<std::size_t>(info.size * info.itemsize);
+  if (stamp_ns >= 0) {
+    if (n < 12) throw std::invalid_argument("message too short for a header stamp");
+    const std::int32_t sec = static_cast<std::int32_t>(stamp_ns / 1000000000);
+    const std::uint32_t nsec = static_cast<std::uint32_t>(stamp_ns % 1000000000);
+    std::memcpy(data + 4, &sec, 4);
+    std::memcpy(data + 8, &nsec, 4);
+  }
+  rcl_serialized_message_t msg = rmw_get_zero_initialized_serialized_message();
+  msg.buffer = data;
+  msg.buffer_length = n;
+  msg.buffer_capacity = n;
+  msg.allocator = rcutils_get_default_allocator();
+  if (rcl_publish_serialized_message(from_address<rcl_publisher_t>(publisher), &msg, nullptr) != RCL_RET_OK)
+    rcl_fail("rcl_publish_serialized_message");
+}
+
+// Little-endian CDR reader (alignment relative to the end of the 4-byte encapsulation header).
+struct Cdr {
+  const std::uint8_t *b;
+  std::size_t n, pos = 4;
+  bool ok = true;
+  void align(std::size_t a) { pos = 4 + ((pos - 4 + a - 1) / a) * a; }
+  const std::uint8_t *take(std::size_t size, std::size_t a) {
+    align(a);
+    if (!ok || pos + size > n) {
+      ok = false;
+      return nullptr;
+    }
+    const std::uint8_t *p = b + pos;
+    pos += size;
+    return p;
+  }
+  std::uint32_t u32() {
+    const std::uint8_t *p = take(4, 4);
+    std::uint32_t v = 0;
+    if (p) std::memcpy(&v, p, 4);
+    return v;
+  }
+  void skip_string() {
+    std::uint32_t len = u32();
+    if (ok) take(len, 1);
+  }
+};
+
+// flip_msgs/MotorCommand: header (stamp, frame_id), uint64 step, string[] name, float64[] effort, ...
+// Returns false for a malformed message; else step and the effort sequence (count, first byte).
+bool read_command(const std::uint8_t *b, std::size_t n, std::uint64_t &step, std::uint32_t &count,
+                  const std::uint8_t *&effort) {
+  Cdr c{b, n};
+  if (n < 4 || b[1] != 0x01) return false;  // CDR_LE (0x0001) only
+  c.take(8, 4);                              // stamp
+  c.skip_string();                           // frame_id
+  const std::uint8_t *s = c.take(8, 8);
+  if (s) std::memcpy(&step, s, 8);
+  std::uint32_t names = c.u32();
+  for (std::uint32_t i = 0; c.ok && i < names; ++i) c.skip_string();
+  count = c.u32();
+  if (!c.ok || count > (n - c.pos) / 8 + 1) return false;
+  effort = count ? c.take(8 * std::size_t(count), 8) : b + c.pos;
+  return c.ok;
+}
+
+// Waits for the /motor_command of one step on its own rcl wait set (command and reference
+// subscriptions, the SIGINT guard condition).
+class CommandWait {
+ public:
+  enum Status { GOT = 0, TIMEOUT = 1, REFERENCE = 2, INTERRUPTED = 3, WRONG_SIZE = 4 };
+
+  CommandWait(std::uintptr_t context, std::uintptr_t command_sub, std::uintptr_t reference_sub,
+              std::uintptr_t sigint_guard)
+      : cmd_(from_address<rcl_subscription_t>(command_sub)),
+        ref_(from_address<rcl_subscription_t>(reference_sub)),
+        guard_(from_address<rcl_guard_condition_t>(sigint_guard)) {
+    ws_ = rcl_get_zero_initialized_wait_set();
+    if (rcl_wait_set_init(&ws_, 2, 1, 0, 0, 0, 0, from_address<rcl_context_t>(context),
+                          rcl_get_default_allocator()) != RCL_RET_OK)
+      rcl_fail("rcl_wait_set_init");
+    taken_ = rmw_get_zero_initialized_serialized_message();
+    auto alloc = rcutils_get_default_allocator();
+    if (rmw_serialized_message_init(&taken_, 1024, &alloc) != RMW_RET_OK) {
+      rcl_wait_set_fini(&ws_);
+      throw std::runtime_error("rmw_serialized_message_init failed");
+    }
+    open_ = true;
+  }
+  ~CommandWait() { close(); }
+
+  void close() {
+    if (!open_) return;
+    open_ = false;
+    rcl_wait_set_fini(&ws_);
+    rmw_serialized_message_fini(&taken_);
+  }
+
+  // Wait up to timeout_ns for the command answering `step`; its torques go to u (of size u.size()).
+  int wait(std::uint64_t step, std::int64_t timeout_ns, py::array_t<double, py::array::c_style> u) {
+    if (!open_) throw std::runtime_error("CommandWait is closed");
+    auto out = u.mutable_unchecked<1>();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+    for (;;) {
+      // commands already queued first (the last wait may have left some)
+      int got = take_commands(step, out.mutable_data(0), static_cast<std::size_t>(out.shape(0)));
+      if (got >= 0) return got;
+      const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+          deadline - std::chrono::steady_clock::now()).count();
+      if (left <= 0) return TIMEOUT;
+      if (rcl_wait_set_clear(&ws_) != RCL_RET_OK) rcl_fail("rcl_wait_set_clear");
+      if (rcl_wait_set_add_subscription(&ws_, cmd_, nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(&ws_, ref_, nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_guard_condition(&ws_, guard_, nullptr) != RCL_RET_OK)
+        rcl_fail("rcl_wait_set_add");
+      rcl_ret_t rc;
+      {
+        py::gil_scoped_release nogil;
+        rc = rcl_wait(&ws_, left);
+      }
+      if (rc == RCL_RET_TIMEOUT) return TIMEOUT;
+      if (rc != RCL_RET_OK) rcl_fail("rcl_wait");
+      if (ws_.guard_conditions[0]) return INTERRUPTED;
+      if (ws_.subscriptions[1]) return REFERENCE;
+    }
+  }
+
+  std::uint32_t last_count() const { return last_count_; }
+  std::uint64_t malformed() const { return malformed_; }
+
+ private:
+  // Take every queued command: GOT / WRONG_SIZE for the one answering `step`, -1 if none did.
+  int take_commands(std::uint64_t step, double *u, std::size_t nu) {
+    for (;;) {
+      rmw_message_info_t info = rmw_get_zero_initialized_message_info();
+      rcl_ret_t rc = rcl_take_serialized_message(cmd_, &taken_, &info, nullptr);
+      if (rc == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return -1;
+      if (rc != RCL_RET_OK) rcl_fail("rcl_take_serialized_message");
+      std::uint64_t k = 0;
+      std::uint32_t count = 0;
+      const std::uint8_t *effort = nullptr;
+      if (!read_command(taken_.buffer, taken_.buffer_length, k, count, effort)) {
+        ++malformed_;
+        continue;
+      }
+      if (k != step) continue;  // an answer to an earlier state (re-sent): dropped
+      last_count_ = count;
+      if (count != nu) return WRONG_SIZE;
+      std::memcpy(u, effort, 8 * nu);
+      return GOT;
+    }
+  }
+
+  rcl_subscription_t *cmd_, *ref_;
+  rcl_guard_condition_t *guard_;
+  rcl_wait_set_t ws_;
+  rcl_serialized_message_t taken_;
+  bool open_ = false;
+  std::uint32_t last_count_ = 0;
+  std::uint64_t malformed_ = 0;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_rcl_io, mod) {
+  mod.doc() = "sim_node's per-step messages on rcl's C API (see native/rcl_io.cpp)";
+  mod.def("publish", &publish, py::arg("publisher"), py::arg("buf"), py::arg("stamp_ns") = -1,
+          "Publish the serialized message in buf (rclpy publisher's pointer); stamp_ns >= 0 writes its "
+          "header stamp first.");
+  py::class_<CommandWait> cw(mod, "CommandWait");
+  cw.def(py::init<std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t>(), py::arg("context"),
+         py::arg("command_subscription"), py::arg("reference_subscription"), py::arg("sigint_guard"))
+      .def("wait", &CommandWait::wait, py::arg("step"), py::arg("timeout_ns"), py::arg("u"))
+      .def("close", &CommandWait::close)
+      .def_property_readonly("last_count", &CommandWait::last_count)
+      .def_property_readonly("malformed", &CommandWait::malformed);
+  cw.attr("GOT") = int(CommandWait::GOT);
+  cw.attr("TIMEOUT") = int(CommandWait::TIMEOUT);
+  cw.attr("REFERENCE") = int(CommandWait::REFERENCE);
+  cw.attr("INTERRUPTED") = int(CommandWait::INTERRUPTED);
+  cw.attr("WRONG_SIZE") = int(CommandWait::WRONG_SIZE);
+}
