@@ -151,13 +151,13 @@ def _recorder_pid(out):
     raise AssertionError(f"no recorder process for {out}")
 
 
-def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, sim_io="rcl"):
+def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl"):
     """`flip stand`; with ``stall_recorder_s``, the recorder is stopped (SIGSTOP) that long once the
-    simulator runs; ``sim_io``: its --sim-io."""
+    simulator runs; ``io``: its --io."""
     from flip_tools.bag import load_bag
     out = tmp_path / name
     p = subprocess.Popen([sys.executable, str(FLIP), "stand", "--duration", str(duration), "--out", str(out),
-                          "--sim-io", sim_io],
+                          "--io", io],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if stall_recorder_s:
         sim_log = out / "logs" / "sim.log"
@@ -173,9 +173,9 @@ def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, sim_io="rcl"):
 
 
 def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
-    """(The second run's simulator uses rclpy for its per-step messages, the first rcl's C API:
-    the same states to the bit.)"""
-    (a, out_a), (b, _) = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5, sim_io="python")
+    """(The second run's simulator and controller use rclpy for their per-step messages, the first
+    run's rcl's C API: the same states to the bit.)"""
+    (a, out_a), (b, _) = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5, io="python")
     n = 2000                                                            # 1 s of 0.5 ms steps
     for bag in (a, b):
         steps = {"/odom": bag["/odom"]["t"], "/joint_states": bag["/joint_states"]["t"]}

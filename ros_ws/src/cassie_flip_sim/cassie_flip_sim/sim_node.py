@@ -10,7 +10,9 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
   3. wait for the ``/motor_command`` with ``step == k`` (older ones are dropped; on a timeout the
      state is sent again and the silence is reported), apply it, step.
 The per-step messages are published from preallocated serialized templates and the commands read
-from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``).
+from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``); in lockstep, by default
+through rcl's C API (``_rcl_io``: publish, and ``CommandWait`` for the command), ``rcl_io:=false``
+through rclpy's Python.
 Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
 counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
 (zero torques, no waiting).

@@ -8,7 +8,9 @@ the controller holds the standing pose.
 
 The per-step messages stay serialized (``cassie_flip_sim.lockstep``): the state is read from
 numpy views of the received bytes, the command patched into a preallocated one. The simulator
-publishes ``/odom`` before ``/joint_states``, so the node wakes on ``/joint_states`` alone.
+publishes ``/odom`` before ``/joint_states``, so the node wakes on ``/joint_states`` alone. By
+default rcl's C API waits for them and publishes the command (``cassie_flip_sim._rcl_io``), with
+rclpy's subscriptions and publisher; ``rcl_io:=false`` does the same through rclpy's Python.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import time
 
 import numpy as np
 import rclpy
+from cassie_flip_sim import _rcl_io
 from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
                                       SubscriptionSet, cpu_per_step_line, joint_state_layout,
                                       motor_command_layout, odometry_layout,
@@ -33,6 +36,8 @@ from .dynamics import MOTOR_NAMES
 DT_NS = 500_000
 #: topics that wake the node: all but /odom, which comes before /joint_states
 WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description')
+#: the topics besides the state's (taken with rclpy also when rcl's C API waits: _rcl_io.StateWait)
+OTHER_TOPICS = ('/contact_events', '/fslip/reference', '/robot_description')
 
 
 class TscNode:
@@ -54,6 +59,12 @@ class TscNode:
         # controller settings (ControllerConfig fields) as a JSON object; checked here, before any
         # controller is built: a bad one stops the node with the reason
         self.overrides = config_overrides(self.node.declare_parameter('controller', '').value)
+        # wait for the state and publish the command through rcl's C API (cassie_flip_sim._rcl_io)
+        # instead of rclpy's Python (the same messages; false: the Python path, e.g. to compare)
+        self.rcl_io = bool(self.node.declare_parameter('rcl_io', True).value)
+        self.state_wait = None
+        self.pub_ptr = self.pub.handle.pointer
+        self.pending = []           # references that came before the robot description
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
                               motor_command_layout)
         self.js = self.odom = None          # the newest serialized /joint_states and /odom
@@ -80,32 +91,64 @@ class TscNode:
         self.node.get_logger().info(f'reference: plan {msg.plan_id} domain {msg.domain}, '
                                     f'{n_t} samples from t={ref.start_time:.3f} s')
 
-    def _state(self):
+    def _state(self, js_buf, odom_buf):
         """(q, v) from the serialized /joint_states and /odom."""
-        js, od = self.read_js(self.js), self.read_odom(self.odom)
+        js, od = self.read_js(js_buf), self.read_odom(odom_buf)
         pose, twist = od['pose'], od['twist']
         return self.controller.model_info.from_ros(self.read_js.names[0], js['position'], js['velocity'],
                                                    pose[:3], pose[3:], twist[:3], twist[3:])
 
-    def _answer(self, k_ns):
+    def _answer(self, k_ns, js_buf, odom_buf):
         if self.cpu0 is None:
             self.cpu0 = (time.process_time(), time.thread_time())
-        q, v = self._state()
+        q, v = self._state(js_buf, odom_buf)
         t0 = time.perf_counter()
         u, info = self.controller.compute(q, v, k_ns * 1e-9)
         dt_us = (time.perf_counter() - t0) * 1e6
         self.tick_us.append(dt_us)
         cmd = self.cmd
-        cmd.stamp(k_ns)
         cmd.fields['step'][0] = k_ns // DT_NS
         cmd.fields['effort'][:] = u
         cmd.fields['compute_time_us'][0] = dt_us
-        self.pub.publish(cmd.data())
+        self._publish_command(k_ns)
         self.answered_ns = k_ns
 
+    def _publish_command(self, k_ns):
+        if self.rcl_io:
+            _rcl_io.publish(self.pub_ptr, self.cmd.buf, k_ns)
+        else:
+            self.cmd.stamp(k_ns)
+            self.pub.publish(self.cmd.data())
+
+    def _on_state(self, js_buf, odom_buf):
+        """A /joint_states and the /odom of the same step: answer it (again, for a re-sent one)."""
+        k_js = read_stamp_ns(js_buf)
+        if k_js == self.answered_ns:
+            self._publish_command(k_js)          # the simulator asked again: same answer
+        elif k_js > self.answered_ns or k_js == 0:
+            self._answer(k_js, js_buf, odom_buf)
+
+    def _on_message(self, topic, msg):
+        """A message of one of OTHER_TOPICS."""
+        if topic == '/robot_description':
+            self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
+                                         flywheel_torque=self.flywheel_torque, **self.overrides)
+            self.node.get_logger().info('controller built from /robot_description'
+                                        + (f', settings {self.overrides}' if self.overrides else ''))
+            for m in self.pending:
+                self._on_reference(m)
+            self.pending.clear()
+        elif topic == '/fslip/reference':
+            if self.controller is None:
+                self.pending.append(msg)
+            else:
+                self._on_reference(msg)
+        elif topic == '/contact_events' and self.controller is not None:
+            self.controller.on_contact_event(msg.event, msg.domain, stamp_to_ns(msg.header.stamp) * 1e-9)
+
     def run(self):
-        log = self.node.get_logger()
-        pending = []
+        if self.rcl_io:
+            return self._run_rcl()
         while rclpy.ok():
             odom_behind = self.js is not None and (self.odom is None or
                                                    read_stamp_ns(self.odom) < read_stamp_ns(self.js))
@@ -113,34 +156,39 @@ class TscNode:
             if self.subs.interrupted:
                 break
             for topic, msg in taken:
-                if topic == '/robot_description':
-                    self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
-                                                 flywheel_torque=self.flywheel_torque, **self.overrides)
-                    log.info('controller built from /robot_description'
-                             + (f', settings {self.overrides}' if self.overrides else ''))
-                    for m in pending:
-                        self._on_reference(m)
-                    pending.clear()
-                elif topic == '/joint_states':
+                if topic == '/joint_states':
                     self.js = msg
                 elif topic == '/odom':
                     self.odom = msg
-                elif topic == '/fslip/reference':
-                    if self.controller is None:
-                        pending.append(msg)
-                    else:
-                        self._on_reference(msg)
-                elif topic == '/contact_events' and self.controller is not None:
-                    self.controller.on_contact_event(msg.event, msg.domain, stamp_to_ns(msg.header.stamp) * 1e-9)
+                else:
+                    self._on_message(topic, msg)
             if self.controller is None or self.js is None or self.odom is None:
                 continue
-            k_js = read_stamp_ns(self.js)
-            if k_js != read_stamp_ns(self.odom):
-                continue
-            if k_js == self.answered_ns:
-                self.pub.publish(self.cmd.data())      # the simulator asked again: same answer
-            elif k_js > self.answered_ns or k_js == 0:
-                self._answer(k_js)
+            if read_stamp_ns(self.js) == read_stamp_ns(self.odom):
+                self._on_state(self.js, self.odom)
+
+    def _run_rcl(self):
+        """run() with rcl's C API waiting for the state (_rcl_io.StateWait); the other topics' messages
+        are taken with rclpy when it reports them."""
+        others = [self.subs.subscription(t) for t in OTHER_TOPICS]
+        sw = self.state_wait = _rcl_io.StateWait(
+            self.node.context.handle.pointer, self.subs.sigint_guard.handle.pointer,
+            self.subs.subscription('/joint_states').handle.pointer,
+            self.subs.subscription('/odom').handle.pointer, [s.handle.pointer for s in others])
+        while rclpy.ok():
+            status = sw.wait(1_000_000_000)
+            if status & sw.INTERRUPTED:
+                break
+            if status & sw.OTHER:
+                for topic, sub in zip(OTHER_TOPICS, others):
+                    while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                        self._on_message(topic, got[0])
+            if status & sw.STATE and self.controller is not None:
+                self._on_state(sw.js, sw.odom)
+
+    def close_io(self):
+        if self.state_wait is not None:
+            self.state_wait.close()
 
     def log_ticks(self):
         """The tick's compute times of this run, to the console only: it is written on the way
@@ -164,6 +212,7 @@ def main(args=None):
         return 2
     def close():
         node.log_ticks()
+        node.close_io()
         node.subs.destroy()
         node.node.destroy_node()
         rclpy.try_shutdown()

@@ -1,4 +1,4 @@
-// cassie_flip_sim._rcl_io: the simulator node's per-step messages on rcl's C API (the rcl of the
+// cassie_flip_sim._rcl_io: the lockstep's per-step messages (sim_node's and tsc_node's) on rcl's C API (the rcl of the
 // rclpy wheel), without the Python around rclpy's publish, wait set and take.
 //
 // The publishers, subscriptions, guard condition and context are rclpy's (their `pointer`s): rclpy
@@ -6,6 +6,7 @@
 // the subscriptions are destroyed).  Messages stay serialized (CDR) as in cassie_flip_sim.lockstep.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
 
 #include <rcl/error_handling.h>
 #include <rcl/publisher.h>
@@ -18,6 +19,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace py = pybind11;
 
@@ -199,6 +201,120 @@ class CommandWait {
   std::uint64_t malformed_ = 0;
 };
 
+// The controller's side: waits until the newest /joint_states and /odom carry the same stamp (a
+// state), or a message is queued on one of the other subscriptions (events, references: taken with
+// rclpy), or SIGINT.  The two state messages are copied into buffers of this object, which Python
+// reads through ``js`` / ``odom`` (memoryviews of the last message of each).
+class StateWait {
+ public:
+  enum { STATE = 1, OTHER = 2, INTERRUPTED = 4, TIMEOUT = 8 };
+
+  StateWait(std::uintptr_t context, std::uintptr_t sigint_guard, std::uintptr_t js_sub, std::uintptr_t odom_sub,
+            const std::vector<std::uintptr_t> &others)
+      : js_(from_address<rcl_subscription_t>(js_sub)),
+        odom_(from_address<rcl_subscription_t>(odom_sub)),
+        guard_(from_address<rcl_guard_condition_t>(sigint_guard)) {
+    for (auto p : others) others_.push_back(from_address<rcl_subscription_t>(p));
+    ws_ = rcl_get_zero_initialized_wait_set();
+    if (rcl_wait_set_init(&ws_, 2 + others_.size(), 1, 0, 0, 0, 0, from_address<rcl_context_t>(context),
+                          rcl_get_default_allocator()) != RCL_RET_OK)
+      rcl_fail("rcl_wait_set_init");
+    taken_ = rmw_get_zero_initialized_serialized_message();
+    auto alloc = rcutils_get_default_allocator();
+    if (rmw_serialized_message_init(&taken_, 4096, &alloc) != RMW_RET_OK) {
+      rcl_wait_set_fini(&ws_);
+      throw std::runtime_error("rmw_serialized_message_init failed");
+    }
+    open_ = true;
+  }
+  ~StateWait() { close(); }
+
+  void close() {
+    if (!open_) return;
+    open_ = false;
+    rcl_wait_set_fini(&ws_);
+    rmw_serialized_message_fini(&taken_);
+  }
+
+  // Bitmask of STATE (a new /joint_states whose stamp the newest /odom carries), OTHER (a message
+  // queued on another subscription), INTERRUPTED, TIMEOUT.
+  int wait(std::int64_t timeout_ns) {
+    if (!open_) throw std::runtime_error("StateWait is closed");
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+    for (;;) {
+      if (take_newest(js_, js_buf_)) js_fresh_ = true;
+      take_newest(odom_, odom_buf_);
+      int result = others_pending_ ? OTHER : 0;
+      const bool odom_behind = !js_buf_.empty() && (odom_buf_.empty() || stamp(odom_buf_) < stamp(js_buf_));
+      if (js_fresh_ && !odom_behind && stamp(odom_buf_) == stamp(js_buf_)) {
+        js_fresh_ = false;
+        result |= STATE;
+      }
+      if (result) {
+        others_pending_ = false;
+        return result;
+      }
+      const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+          deadline - std::chrono::steady_clock::now()).count();
+      if (left <= 0) return TIMEOUT;
+      if (rcl_wait_set_clear(&ws_) != RCL_RET_OK) rcl_fail("rcl_wait_set_clear");
+      // /odom comes before /joint_states: wake on /joint_states alone unless /odom is behind it
+      bool ok = rcl_wait_set_add_subscription(&ws_, js_, nullptr) == RCL_RET_OK;
+      if (odom_behind) ok = ok && rcl_wait_set_add_subscription(&ws_, odom_, nullptr) == RCL_RET_OK;
+      for (auto *s : others_) ok = ok && rcl_wait_set_add_subscription(&ws_, s, nullptr) == RCL_RET_OK;
+      ok = ok && rcl_wait_set_add_guard_condition(&ws_, guard_, nullptr) == RCL_RET_OK;
+      if (!ok) rcl_fail("rcl_wait_set_add");
+      rcl_ret_t rc;
+      {
+        py::gil_scoped_release nogil;
+        rc = rcl_wait(&ws_, left);
+      }
+      if (rc == RCL_RET_TIMEOUT) return TIMEOUT;
+      if (rc != RCL_RET_OK) rcl_fail("rcl_wait");
+      if (ws_.guard_conditions[0]) return INTERRUPTED;
+      for (std::size_t i = 0; i < ws_.size_of_subscriptions; ++i)
+        if (ws_.subscriptions[i] && ws_.subscriptions[i] != js_ && ws_.subscriptions[i] != odom_)
+          others_pending_ = true;
+    }
+  }
+
+  py::memoryview js() const { return view(js_buf_); }
+  py::memoryview odom() const { return view(odom_buf_); }
+
+ private:
+  static std::int64_t stamp(const std::string &b) {
+    if (b.size() < 12) return -1;
+    std::int32_t sec;
+    std::uint32_t nsec;
+    std::memcpy(&sec, b.data() + 4, 4);
+    std::memcpy(&nsec, b.data() + 8, 4);
+    return std::int64_t(sec) * 1000000000 + nsec;
+  }
+  static py::memoryview view(const std::string &b) {
+    return py::memoryview::from_memory(const_cast<char *>(b.data()), static_cast<py::ssize_t>(b.size()), true);
+  }
+  // Take every queued message of sub; the newest goes to buf. Whether there was one.
+  bool take_newest(rcl_subscription_t *sub, std::string &buf) {
+    bool any = false;
+    for (;;) {
+      rmw_message_info_t info = rmw_get_zero_initialized_message_info();
+      rcl_ret_t rc = rcl_take_serialized_message(sub, &taken_, &info, nullptr);
+      if (rc == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return any;
+      if (rc != RCL_RET_OK) rcl_fail("rcl_take_serialized_message");
+      buf.assign(reinterpret_cast<const char *>(taken_.buffer), taken_.buffer_length);
+      any = true;
+    }
+  }
+
+  rcl_subscription_t *js_, *odom_;
+  std::vector<rcl_subscription_t *> others_;
+  rcl_guard_condition_t *guard_;
+  rcl_wait_set_t ws_;
+  rcl_serialized_message_t taken_;
+  std::string js_buf_, odom_buf_;
+  bool js_fresh_ = false, others_pending_ = false, open_ = false;
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_rcl_io, mod) {
@@ -218,4 +334,17 @@ PYBIND11_MODULE(_rcl_io, mod) {
   cw.attr("REFERENCE") = int(CommandWait::REFERENCE);
   cw.attr("INTERRUPTED") = int(CommandWait::INTERRUPTED);
   cw.attr("WRONG_SIZE") = int(CommandWait::WRONG_SIZE);
+
+  py::class_<StateWait> sw(mod, "StateWait");
+  sw.def(py::init<std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t, const std::vector<std::uintptr_t> &>(),
+         py::arg("context"), py::arg("sigint_guard"), py::arg("joint_states_subscription"),
+         py::arg("odom_subscription"), py::arg("other_subscriptions"))
+      .def("wait", &StateWait::wait, py::arg("timeout_ns"))
+      .def("close", &StateWait::close)
+      .def_property_readonly("js", &StateWait::js, "the newest /joint_states (serialized; valid until the next wait)")
+      .def_property_readonly("odom", &StateWait::odom, "the newest /odom (serialized; valid until the next wait)");
+  sw.attr("STATE") = int(StateWait::STATE);
+  sw.attr("OTHER") = int(StateWait::OTHER);
+  sw.attr("INTERRUPTED") = int(StateWait::INTERRUPTED);
+  sw.attr("TIMEOUT") = int(StateWait::TIMEOUT);
 }
