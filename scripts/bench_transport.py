@@ -8,10 +8,12 @@ process's main thread and its middleware threads, and the answering side's work 
 
 The state side publishes ``/odom`` and ``/joint_states`` (33 joints, as sim_node) and waits for the
 ``/motor_command`` of that step (re-sending after 50 ms); the command side wakes on
-``/joint_states``, takes both, works, answers.  Anything the real graph adds (MuJoCo's step, the
-state's conversion, the recorder's copies) comes on top of these rows.
+``/joint_states``, takes both, works, answers.  ``--io rcl`` (default) does that through rcl's C API
+as the nodes do by default (``cassie_flip_sim._rcl_io``), ``--io python`` through rclpy
+(``lockstep.SubscriptionSet``).  Anything the real graph adds (MuJoCo's step, the state's
+conversion, the recorder's copies) comes on top of these rows.
 
-    .venv/bin/python scripts/bench_transport.py [--steps 6000] [--work-us 150]
+    .venv/bin/python scripts/bench_transport.py [--steps 6000] [--work-us 150] [--io rcl|python]
 """
 from __future__ import annotations
 
@@ -35,8 +37,10 @@ def _cpu_line(cpu0, n):
     return {"main_us": 1e6 * main / n, "other_us": 1e6 * max(proc - main, 0.0) / n}
 
 
-def state_side(steps: int) -> dict:
+def state_side(steps: int, io: str) -> dict:
+    import numpy as np
     import rclpy
+    from cassie_flip_sim import _rcl_io
     from cassie_flip_sim.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, joint_state_layout,
                                           motor_command_layout, odometry_layout, pin_to_lockstep_cpu,
                                           MessageReader)
@@ -46,7 +50,10 @@ def state_side(steps: int) -> dict:
     pin_to_lockstep_cpu()
     rclpy.init()
     node = rclpy.create_node("transport_state")
-    subs = SubscriptionSet(node, [(MotorCommand, "/motor_command", STREAM_QOS)], raw=("/motor_command",))
+    from cassie_flip_sim.lockstep import LATCHED_QOS
+    from flip_msgs.msg import FlipReference
+    subs = SubscriptionSet(node, [(MotorCommand, "/motor_command", STREAM_QOS),
+                                  (FlipReference, "/fslip/reference", LATCHED_QOS)], raw=("/motor_command",))
     pub_js = node.create_publisher(JointState, "/joint_states", STREAM_QOS)
     pub_od = node.create_publisher(Odometry, "/odom", STREAM_QOS)
     js = RawMessage(JointState(name=[f"joint_{i}" for i in range(STATE_JOINTS)], position=[0.0] * STATE_JOINTS,
@@ -62,25 +69,38 @@ def state_side(steps: int) -> dict:
         time.sleep(0.01)
     time.sleep(0.5)
     resends = 0
+    if io == "rcl":
+        cw = _rcl_io.CommandWait(node.context.handle.pointer, subs.subscription("/motor_command").handle.pointer,
+                                 subs.subscription("/fslip/reference").handle.pointer,
+                                 subs.sigint_guard.handle.pointer)
+        p_od, p_js, u = pub_od.handle.pointer, pub_js.handle.pointer, np.zeros(11)
+
+        def send(ns):
+            _rcl_io.publish(p_od, od.buf, ns)
+            _rcl_io.publish(p_js, js.buf, ns)
+
+        def answered(k):
+            return cw.wait(k, 50_000_000, u) == cw.GOT
+    else:
+        def send(ns):
+            for m in (od, js):
+                m.stamp(ns)
+            pub_od.publish(od.data())
+            pub_js.publish(js.data())
+
+        def answered(k):
+            return any(t == "/motor_command" and read(m)["step"][0] == k for t, m in subs.wait(0.05))
     for k in range(steps + WARMUP):
         if k == WARMUP:
             t0, cpu0 = time.perf_counter(), (time.process_time(), time.thread_time())
-        ns = k * 500_000
-        for m in (od, js):
-            m.stamp(ns)
-        pub_od.publish(od.data())
-        pub_js.publish(js.data())
-        sent = time.monotonic()
-        while True:
-            if any(read(m)["step"][0] == k for _, m in subs.wait(0.05)):
-                break
-            if time.monotonic() - sent > 0.05:
-                resends += 1
-                pub_od.publish(od.data())
-                pub_js.publish(js.data())
-                sent = time.monotonic()
+        send(k * 500_000)
+        while not answered(k):
+            resends += 1
+            send(k * 500_000)
     wall = time.perf_counter() - t0
     out = {"round_trip_us": 1e6 * wall / steps, "resends": resends, **_cpu_line(cpu0, steps)}
+    if io == "rcl":
+        cw.close()
     subs.destroy()
     node.destroy_node()
     rclpy.try_shutdown()
@@ -105,8 +125,9 @@ def _standing_ticks(n: int):
     return Controller(export_mjcf()), states
 
 
-def command_side(work: str, work_us: float) -> dict:
+def command_side(work: str, work_us: float, io: str) -> dict:
     import rclpy
+    from cassie_flip_sim import _rcl_io
     from cassie_flip_sim.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, motor_command_layout,
                                           pin_to_lockstep_cpu, read_stamp_ns)
     from flip_msgs.msg import MotorCommand
@@ -123,17 +144,32 @@ def command_side(work: str, work_us: float) -> dict:
     pub = node.create_publisher(MotorCommand, "/motor_command", STREAM_QOS)
     cmd = RawMessage(MotorCommand(name=[f"motor_{i}" for i in range(11)], effort=[0.0] * 11), motor_command_layout)
     n, busy, cpu0, answered = 0, 0.0, None, -1
-    first_wait = 30.0
-    while rclpy.ok():
-        taken = subs.wait(first_wait if cpu0 is None else 2.0, on=("/joint_states",))
-        if not taken:
-            break
-        ns = max(read_stamp_ns(m) for t, m in taken if t == "/joint_states") if any(
-            t == "/joint_states" for t, _ in taken) else None
-        if ns is None:
-            continue
-        if ns == answered:                         # a re-sent state: the same answer
+    if io == "rcl":
+        sw = _rcl_io.StateWait(node.context.handle.pointer, subs.sigint_guard.handle.pointer,
+                               subs.subscription("/joint_states").handle.pointer,
+                               subs.subscription("/odom").handle.pointer, [])
+        p_cmd = pub.handle.pointer
+
+        def next_state(timeout_s):
+            return read_stamp_ns(sw.js) if sw.wait(int(timeout_s * 1e9)) & sw.STATE else None
+
+        def answer(ns):
+            _rcl_io.publish(p_cmd, cmd.buf, ns)
+    else:
+        def next_state(timeout_s):
+            taken = subs.wait(timeout_s, on=("/joint_states",))
+            stamps = [read_stamp_ns(m) for t, m in taken if t == "/joint_states"]
+            return max(stamps) if stamps else None
+
+        def answer(ns):
+            cmd.stamp(ns)
             pub.publish(cmd.data())
+    while rclpy.ok():
+        ns = next_state(30.0 if cpu0 is None else 2.0)
+        if ns is None:
+            break
+        if ns == answered:                         # a re-sent state: the same answer
+            answer(ns)
             continue
         k = ns // 500_000
         if k == WARMUP:
@@ -145,19 +181,20 @@ def command_side(work: str, work_us: float) -> dict:
         while time.perf_counter() - t0 < work_us * 1e-6:
             pass
         busy += time.perf_counter() - t0
-        cmd.stamp(ns)
         cmd.fields["step"][0] = k
-        pub.publish(cmd.data())
+        answer(ns)
         answered = ns
         n += 1
     out = {"work_us": 1e6 * busy / max(n, 1), **_cpu_line(cpu0, max(n, 1))} if cpu0 else {}
+    if io == "rcl":
+        sw.close()
     subs.destroy()
     node.destroy_node()
     rclpy.try_shutdown()
     return out
 
 
-def one(work: str, work_us: float, steps: int) -> dict:
+def one(work: str, work_us: float, steps: int, io: str) -> dict:
     """Both sides as processes of their own in a domain of their own, pinned to one CPU."""
     from flip_tools.launcher import PROFILES_ENV, fastdds_profile_file
     from flip_tools.rosenv import claim_domain, node_env
@@ -167,9 +204,9 @@ def one(work: str, work_us: float, steps: int) -> dict:
         env = node_env(dom.domain_id, {"FLIP_LOCKSTEP_CPU": cpu,
                                        PROFILES_ENV: os.environ.get(PROFILES_ENV) or fastdds_profile_file()})
         me = [sys.executable, __file__]
-        cmd_side = subprocess.Popen(me + ["--role", "command", "--work", work, "--work-us", str(work_us)],
-                                    env=env, stdout=subprocess.PIPE, text=True)
-        state = subprocess.run(me + ["--role", "state", "--steps", str(steps)], env=env,
+        cmd_side = subprocess.Popen(me + ["--role", "command", "--work", work, "--work-us", str(work_us),
+                                          "--io", io], env=env, stdout=subprocess.PIPE, text=True)
+        state = subprocess.run(me + ["--role", "state", "--steps", str(steps), "--io", io], env=env,
                                stdout=subprocess.PIPE, text=True, timeout=600)
         c_out = cmd_side.communicate(timeout=60)[0]
     s, c = json.loads(state.stdout.strip().splitlines()[-1]), json.loads(c_out.strip().splitlines()[-1])
@@ -180,22 +217,25 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=6000)
     ap.add_argument("--work-us", type=float, default=150.0, help="busy work of the 'busy' row, us")
+    ap.add_argument("--io", default="rcl", choices=["rcl", "python"],
+                    help="per-step messages through rcl's C API (as the nodes by default) or rclpy")
     ap.add_argument("--role", choices=["state", "command"], help=argparse.SUPPRESS)
     ap.add_argument("--work", default="none", choices=["none", "busy", "tick"], help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.role == "state":
-        print(json.dumps(state_side(a.steps)))
+        print(json.dumps(state_side(a.steps, a.io)))
         return 0
     if a.role == "command":
-        print(json.dumps(command_side(a.work, a.work_us if a.work == "busy" else 0.0)))
+        print(json.dumps(command_side(a.work, a.work_us if a.work == "busy" else 0.0, a.io)))
         return 0
     rows = [("no work", "none"), (f"busy loop {a.work_us:g} us", "busy"), ("controller tick (standing states)", "tick")]
-    print(f"two processes on one CPU, /odom + /joint_states -> /motor_command per step, {a.steps} steps")
+    print(f"two processes on one CPU, /odom + /joint_states -> /motor_command per step, {a.steps} steps, "
+          f"{'rcl C API' if a.io == 'rcl' else 'rclpy'}")
     print("| answering side does | round trip us | RTF at 2 kHz | state main / other us | command main / other us "
           "| its work us | re-sent |")
     print("|---|---|---|---|---|---|---|")
     for label, work in rows:
-        r = one(work, a.work_us, a.steps)
+        r = one(work, a.work_us, a.steps, a.io)
         s, c = r["state"], r["command"]
         print(f"| {label} | {s['round_trip_us']:.1f} | {500.0 / s['round_trip_us']:.2f} | "
               f"{s['main_us']:.0f} / {s['other_us']:.0f} | {c['main_us']:.0f} / {c['other_us']:.0f} | "
