@@ -407,13 +407,18 @@ class SimNode:
             if self.subs.interrupted or not rclpy.ok():
                 return None
             if time.monotonic() - t_sent >= COMMAND_RESEND_S:
-                self.resends += 1
-                if not warned and time.monotonic() - t_sent > 1.0:
-                    self.node.get_logger().warn(f'controller silent for step {k}: waiting')
-                    warned = True
-                self._publish_state(k)
-                self.executor.spin_once(timeout_sec=0.0)
+                warned = self._send_again(k, time.monotonic() - t_sent, warned)
 
+    def _send_again(self, k, silent_s, warned):
+        """No command for step k within COMMAND_RESEND_S: send the state again (and serve the
+        services), warn once the controller has been silent for a second. Returns whether it has."""
+        self.resends += 1
+        if not warned and silent_s > 1.0:
+            self.node.get_logger().warn(f'controller silent for step {k}: waiting')
+            warned = True
+        self._publish_state(k)
+        self.executor.spin_once(timeout_sec=0.0)
+        return warned
 
     def _wait_command_rcl(self, k):
         """_wait_command through _rcl_io.CommandWait: the torques of step k (a view of the command
@@ -434,13 +439,8 @@ class SimNode:
             elif status == cw.WRONG_SIZE:
                 self.node.get_logger().error(
                     f'/motor_command for step {k} has {cw.last_count} torques, not 11: ignored')
-            else:                                          # TIMEOUT: send the state again
-                self.resends += 1
-                if not warned and time.monotonic() - t_first > 1.0:
-                    self.node.get_logger().warn(f'controller silent for step {k}: waiting')
-                    warned = True
-                self._publish_state(k)
-                self.executor.spin_once(timeout_sec=0.0)
+            else:                                          # TIMEOUT
+                warned = self._send_again(k, time.monotonic() - t_first, warned)
                 t_sent = time.monotonic()
 
     def close_io(self):

@@ -105,31 +105,10 @@ bool read_command(const std::uint8_t *b, std::size_t n, std::uint64_t &step, std
   return c.ok;
 }
 
-// Waits for the /motor_command of one step on its own rcl wait set (command and reference
-// subscriptions, the SIGINT guard condition).
-class CommandWait {
+// An rcl wait set of its own (subscriptions and one guard condition) and a buffer that serialized
+// messages are taken into; close() (or the destructor) releases both.
+class Waiter {
  public:
-  enum Status { GOT = 0, TIMEOUT = 1, REFERENCE = 2, INTERRUPTED = 3, WRONG_SIZE = 4 };
-
-  CommandWait(std::uintptr_t context, std::uintptr_t command_sub, std::uintptr_t reference_sub,
-              std::uintptr_t sigint_guard)
-      : cmd_(from_address<rcl_subscription_t>(command_sub)),
-        ref_(from_address<rcl_subscription_t>(reference_sub)),
-        guard_(from_address<rcl_guard_condition_t>(sigint_guard)) {
-    ws_ = rcl_get_zero_initialized_wait_set();
-    if (rcl_wait_set_init(&ws_, 2, 1, 0, 0, 0, 0, from_address<rcl_context_t>(context),
-                          rcl_get_default_allocator()) != RCL_RET_OK)
-      rcl_fail("rcl_wait_set_init");
-    taken_ = rmw_get_zero_initialized_serialized_message();
-    auto alloc = rcutils_get_default_allocator();
-    if (rmw_serialized_message_init(&taken_, 1024, &alloc) != RMW_RET_OK) {
-      rcl_wait_set_fini(&ws_);
-      throw std::runtime_error("rmw_serialized_message_init failed");
-    }
-    open_ = true;
-  }
-  ~CommandWait() { close(); }
-
   void close() {
     if (!open_) return;
     open_ = false;
@@ -137,9 +116,56 @@ class CommandWait {
     rmw_serialized_message_fini(&taken_);
   }
 
+ protected:
+  Waiter(std::uintptr_t context, std::size_t subscriptions, std::size_t capacity) {
+    ws_ = rcl_get_zero_initialized_wait_set();
+    if (rcl_wait_set_init(&ws_, subscriptions, 1, 0, 0, 0, 0, from_address<rcl_context_t>(context),
+                          rcl_get_default_allocator()) != RCL_RET_OK)
+      rcl_fail("rcl_wait_set_init");
+    taken_ = rmw_get_zero_initialized_serialized_message();
+    auto alloc = rcutils_get_default_allocator();
+    if (rmw_serialized_message_init(&taken_, capacity, &alloc) != RMW_RET_OK) {
+      rcl_wait_set_fini(&ws_);
+      throw std::runtime_error("rmw_serialized_message_init failed");
+    }
+    open_ = true;
+  }
+  ~Waiter() { close(); }
+  void check_open() const {
+    if (!open_) throw std::runtime_error("closed");
+  }
+  // rcl_wait with the GIL released: RCL_RET_OK, or RCL_RET_TIMEOUT
+  rcl_ret_t wait_for(std::int64_t timeout_ns) {
+    rcl_ret_t rc;
+    {
+      py::gil_scoped_release nogil;
+      rc = rcl_wait(&ws_, timeout_ns);
+    }
+    if (rc != RCL_RET_OK && rc != RCL_RET_TIMEOUT) rcl_fail("rcl_wait");
+    return rc;
+  }
+
+  rcl_wait_set_t ws_;
+  rcl_serialized_message_t taken_;
+  bool open_ = false;
+};
+
+// Waits for the /motor_command of one step on its own rcl wait set (command and reference
+// subscriptions, the SIGINT guard condition).
+class CommandWait : public Waiter {
+ public:
+  enum Status { GOT = 0, TIMEOUT = 1, REFERENCE = 2, INTERRUPTED = 3, WRONG_SIZE = 4 };
+
+  CommandWait(std::uintptr_t context, std::uintptr_t command_sub, std::uintptr_t reference_sub,
+              std::uintptr_t sigint_guard)
+      : Waiter(context, 2, 1024),
+        cmd_(from_address<rcl_subscription_t>(command_sub)),
+        ref_(from_address<rcl_subscription_t>(reference_sub)),
+        guard_(from_address<rcl_guard_condition_t>(sigint_guard)) {}
+
   // Wait up to timeout_ns for the command answering `step`; its torques go to u (of size u.size()).
   int wait(std::uint64_t step, std::int64_t timeout_ns, py::array_t<double, py::array::c_style> u) {
-    if (!open_) throw std::runtime_error("CommandWait is closed");
+    check_open();
     auto out = u.mutable_unchecked<1>();
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
     for (;;) {
@@ -154,13 +180,7 @@ class CommandWait {
           rcl_wait_set_add_subscription(&ws_, ref_, nullptr) != RCL_RET_OK ||
           rcl_wait_set_add_guard_condition(&ws_, guard_, nullptr) != RCL_RET_OK)
         rcl_fail("rcl_wait_set_add");
-      rcl_ret_t rc;
-      {
-        py::gil_scoped_release nogil;
-        rc = rcl_wait(&ws_, left);
-      }
-      if (rc == RCL_RET_TIMEOUT) return TIMEOUT;
-      if (rc != RCL_RET_OK) rcl_fail("rcl_wait");
+      if (wait_for(left) == RCL_RET_TIMEOUT) return TIMEOUT;
       if (ws_.guard_conditions[0]) return INTERRUPTED;
       if (ws_.subscriptions[1]) return REFERENCE;
     }
@@ -194,9 +214,6 @@ class CommandWait {
 
   rcl_subscription_t *cmd_, *ref_;
   rcl_guard_condition_t *guard_;
-  rcl_wait_set_t ws_;
-  rcl_serialized_message_t taken_;
-  bool open_ = false;
   std::uint32_t last_count_ = 0;
   std::uint64_t malformed_ = 0;
 };
@@ -205,41 +222,23 @@ class CommandWait {
 // state), or a message is queued on one of the other subscriptions (events, references: taken with
 // rclpy), or SIGINT.  The two state messages are copied into buffers of this object, which Python
 // reads through ``js`` / ``odom`` (memoryviews of the last message of each).
-class StateWait {
+class StateWait : public Waiter {
  public:
   enum { STATE = 1, OTHER = 2, INTERRUPTED = 4, TIMEOUT = 8 };
 
   StateWait(std::uintptr_t context, std::uintptr_t sigint_guard, std::uintptr_t js_sub, std::uintptr_t odom_sub,
             const std::vector<std::uintptr_t> &others)
-      : js_(from_address<rcl_subscription_t>(js_sub)),
+      : Waiter(context, 2 + others.size(), 4096),
+        js_(from_address<rcl_subscription_t>(js_sub)),
         odom_(from_address<rcl_subscription_t>(odom_sub)),
         guard_(from_address<rcl_guard_condition_t>(sigint_guard)) {
     for (auto p : others) others_.push_back(from_address<rcl_subscription_t>(p));
-    ws_ = rcl_get_zero_initialized_wait_set();
-    if (rcl_wait_set_init(&ws_, 2 + others_.size(), 1, 0, 0, 0, 0, from_address<rcl_context_t>(context),
-                          rcl_get_default_allocator()) != RCL_RET_OK)
-      rcl_fail("rcl_wait_set_init");
-    taken_ = rmw_get_zero_initialized_serialized_message();
-    auto alloc = rcutils_get_default_allocator();
-    if (rmw_serialized_message_init(&taken_, 4096, &alloc) != RMW_RET_OK) {
-      rcl_wait_set_fini(&ws_);
-      throw std::runtime_error("rmw_serialized_message_init failed");
-    }
-    open_ = true;
-  }
-  ~StateWait() { close(); }
-
-  void close() {
-    if (!open_) return;
-    open_ = false;
-    rcl_wait_set_fini(&ws_);
-    rmw_serialized_message_fini(&taken_);
   }
 
   // Bitmask of STATE (a new /joint_states whose stamp the newest /odom carries), OTHER (a message
   // queued on another subscription), INTERRUPTED, TIMEOUT.
   int wait(std::int64_t timeout_ns) {
-    if (!open_) throw std::runtime_error("StateWait is closed");
+    check_open();
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
     for (;;) {
       if (take_newest(js_, js_buf_)) js_fresh_ = true;
@@ -264,13 +263,7 @@ class StateWait {
       for (auto *s : others_) ok = ok && rcl_wait_set_add_subscription(&ws_, s, nullptr) == RCL_RET_OK;
       ok = ok && rcl_wait_set_add_guard_condition(&ws_, guard_, nullptr) == RCL_RET_OK;
       if (!ok) rcl_fail("rcl_wait_set_add");
-      rcl_ret_t rc;
-      {
-        py::gil_scoped_release nogil;
-        rc = rcl_wait(&ws_, left);
-      }
-      if (rc == RCL_RET_TIMEOUT) return TIMEOUT;
-      if (rc != RCL_RET_OK) rcl_fail("rcl_wait");
+      if (wait_for(left) == RCL_RET_TIMEOUT) return TIMEOUT;
       if (ws_.guard_conditions[0]) return INTERRUPTED;
       for (std::size_t i = 0; i < ws_.size_of_subscriptions; ++i)
         if (ws_.subscriptions[i] && ws_.subscriptions[i] != js_ && ws_.subscriptions[i] != odom_)
@@ -309,10 +302,8 @@ class StateWait {
   rcl_subscription_t *js_, *odom_;
   std::vector<rcl_subscription_t *> others_;
   rcl_guard_condition_t *guard_;
-  rcl_wait_set_t ws_;
-  rcl_serialized_message_t taken_;
   std::string js_buf_, odom_buf_;
-  bool js_fresh_ = false, others_pending_ = false, open_ = false;
+  bool js_fresh_ = false, others_pending_ = false;
 };
 
 }  // namespace
