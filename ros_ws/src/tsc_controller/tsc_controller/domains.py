@@ -79,6 +79,7 @@ class SampledReference:
         def arr(x):
             return np.zeros((n, k)) if x is None or len(x) == 0 else np.asarray(x, float).reshape(n, k)
         self.value, self.d_value, self.dd_value = arr(value), arr(d_value), arr(dd_value)
+        self._rows = np.concatenate((self.value, self.d_value, self.dd_value), axis=1)   # sampled at once
         self.start_time = float(start_time)
         self.plan_id = int(plan_id)
         self.parameters = dict(parameters or {})
@@ -108,19 +109,18 @@ class SampledReference:
         else:
             i = int(np.searchsorted(t, tau)) - 1
             a = (tau - t[i]) / (t[i + 1] - t[i])
-        if len(t) == 1:
-            rows = [self.value[0], self.d_value[0], self.dd_value[0]]
-        else:
-            rows = [(1 - a) * X[i] + a * X[i + 1] for X in (self.value, self.d_value, self.dd_value)]
-        return {nm: (rows[0][c], rows[1][c], rows[2][c]) for nm, c in self._col.items()}
+        R = self._rows
+        row = (R[0] if len(t) == 1 else (1 - a) * R[i] + a * R[i + 1]).tolist()
+        k = len(self.names)
+        return {nm: (row[c], row[k + c], row[2 * k + c]) for nm, c in self._col.items()}
 
 
 def quintic(y0, y1, T, s, v0=None):
     """Quintic from (y0, v0, 0) to (y1, 0, 0) over T (min-jerk when v0 = 0), at time s: (y, ydot, yddot).
 
     y = y0 + (y1 - y0) p(x) + v0 (s + T r(x)),  x = s/T,  p = 10x^3 - 15x^4 + 6x^5,  r = -6x^3 + 8x^4 - 3x^5."""
-    y1 = np.asarray(y1, float)
     if T <= 0 or s >= T:
+        y1 = np.asarray(y1, float)
         z = np.zeros_like(y1)
         return y1, z, z
     x = max(s, 0.0) / T
@@ -128,6 +128,23 @@ def quintic(y0, y1, T, s, v0=None):
     x3 = x2 * x
     p, dp, ddp = x3 * (10 - 15 * x + 6 * x2), x2 * (30 - 60 * x + 30 * x2) / T, x * (60 - 180 * x + 120 * x2) / T ** 2
     r, dr, ddr = x3 * (-6 + 8 * x - 3 * x2), x2 * (-18 + 32 * x - 15 * x2) / T, x * (-36 + 96 * x - 60 * x2) / T ** 2
+    if (type(y0) is np.ndarray and type(y1) is np.ndarray and y0.dtype == y1.dtype == np.float64
+            and y0.ndim == 1 and y0.shape == y1.shape
+            and (v0 is None or (type(v0) is np.ndarray and v0.dtype == np.float64 and v0.shape == y0.shape))):
+        # the expressions below element by element in Python floats (the same operations in the same
+        # order: the same numbers), for the 1-3 element outputs of a tick, where numpy's per-call cost
+        # is most of the time
+        a, b = y0.tolist(), y1.tolist()
+        d = [bi - ai for ai, bi in zip(a, b)]
+        if v0 is None:
+            return (np.array([ai + p * di for ai, di in zip(a, d)]), np.array([dp * di for di in d]),
+                    np.array([ddp * di for di in d]))
+        c0, c1, c2 = max(s, 0.0) + T * r, 1.0 + T * dr, T * ddr
+        v = v0.tolist()
+        return (np.array([ai + p * di + c0 * vi for ai, di, vi in zip(a, d, v)]),
+                np.array([dp * di + c1 * vi for di, vi in zip(d, v)]),
+                np.array([ddp * di + c2 * vi for di, vi in zip(d, v)]))
+    y1 = np.asarray(y1, float)
     d = y1 - y0
     if v0 is None:
         return y0 + p * d, dp * d, ddp * d
