@@ -214,3 +214,20 @@ def test_quintic_of_short_vectors_equals_its_array_form():
                 ref = quintic(y0[None], y1[None], T, s, None if v is None else v[None])
                 for f, r in zip(fast, ref):
                     assert f.shape == (n,) and np.array_equal(f, np.asarray(r).reshape(-1)), (n, T, s, v)
+
+
+def test_compute_without_details_gives_the_same_torques():
+    """compute(details=False) (the controller node's call) leaves forces, ground reaction and errors
+    out of info and gives the same torques, to the bit, tick after tick."""
+    sim = Simulator()
+    full, lean = Controller(export_mjcf()), Controller(export_mjcf())
+    conv = StateConverter(full.dyn)
+    for _ in range(400):
+        q, v = conv.from_simulator(sim)
+        u, info = full.compute(q, v, sim.time)
+        u2, info2 = lean.compute(q, v, sim.time, details=False)
+        assert np.array_equal(u, u2)
+        assert "forces" in info and "grf" in info and "errors" in info
+        assert not {"forces", "grf", "errors"} & set(info2) and info2["qp_status"] == info["qp_status"]
+        sim.step(u)
+    assert sim.pelvis_pose()[0][2] > 0.8                  # still standing: the ticks were real ones

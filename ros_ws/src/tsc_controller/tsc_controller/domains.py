@@ -883,8 +883,9 @@ class Controller:
                        qp_time=0.0, qp_iter=0, timing={}, grf=(0.0, 0.0))
 
     # -------------------------------------------------------------- the tick
-    def compute(self, q, v, t):
-        """One TSC tick: returns (u (11,), info dict)."""
+    def compute(self, q, v, t, details: bool = True):
+        """One TSC tick: returns (u (11,), info dict).  ``details=False`` leaves the predicted forces,
+        ground reaction and output errors out of ``info`` (the same u)."""
         t0 = time.perf_counter()
         self._switch(t)                            # events and references only, no state needed
         if (self.cfg.rigid_springs and self.domain != Domain.FLIGHT
@@ -922,6 +923,8 @@ class Controller:
         info = dict(tick_time=time.perf_counter() - t0, qp_status=status, domain=int(self.domain),
                     qp_time=res.solve_time if res else 0.0, qp_iter=res.iterations if res else 0,
                     timing=dict(dynamics=t_dyn, **(res.timing if res else {})))
+        if not details:
+            return u, info
         if res is not None:
             F = res.forces
             info["forces"] = F

@@ -33,11 +33,16 @@ class Desired:
 class QPResult:
     u: np.ndarray
     status: str
-    forces: np.ndarray          # predicted constraint forces (contact rows first when on the ground)
     solve_time: float
     iterations: int = 0
     y: dict = field(default_factory=dict)   # output errors (name -> Y)
     dynamics: ConstrainedDynamics = None
+
+    @property
+    def forces(self):
+        """Predicted constraint forces F = A u + b (contact rows first when on the ground); worked
+        out when asked for (the controller node does not)."""
+        return self.dynamics.forces(self.u)
 
     @property
     def qdd(self):
@@ -343,6 +348,6 @@ class TSC:
                 u, status = np.clip(np.zeros(nu), u_lb, u_ub), status + "->zero"
         ts = time.perf_counter() - t0
         self.last = cd
-        res = QPResult(u=u, status=status, forces=cd.forces(u), solve_time=ts, iterations=it, y=errs, dynamics=cd)
+        res = QPResult(u=u, status=status, solve_time=ts, iterations=it, y=errs, dynamics=cd)
         res.timing = dict(constraints=t_b - t_a, elimination_outputs=t_c - t_b, qp=time.perf_counter() - t_c)
         return res

@@ -103,7 +103,7 @@ class TscNode:
             self.cpu0 = (time.process_time(), time.thread_time())
         q, v = self._state(js_buf, odom_buf)
         t0 = time.perf_counter()
-        u, info = self.controller.compute(q, v, k_ns * 1e-9)
+        u, _ = self.controller.compute(q, v, k_ns * 1e-9, details=False)
         dt_us = (time.perf_counter() - t0) * 1e6
         self.tick_us.append(dt_us)
         cmd = self.cmd
