@@ -121,7 +121,7 @@ def quintic(y0, y1, T, s, v0=None):
     y = y0 + (y1 - y0) p(x) + v0 (s + T r(x)),  x = s/T,  p = 10x^3 - 15x^4 + 6x^5,  r = -6x^3 + 8x^4 - 3x^5."""
     if T <= 0 or s >= T:
         y1 = np.asarray(y1, float)
-        z = np.zeros_like(y1)
+        z = np.zeros(y1.shape)
         return y1, z, z
     x = max(s, 0.0) / T
     x2 = x * x
