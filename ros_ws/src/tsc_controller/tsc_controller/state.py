@@ -8,6 +8,8 @@ Pinocchio's free-flyer velocity (linear and angular, both local).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -25,6 +27,7 @@ class StateConverter:
         self.base_q = m.idx_qs[dyn.base_jid]
         self.base_v = m.idx_vs[dyn.base_jid]
         self._names = None
+        self._names_seen = None     # the names object last checked against self._names
         self.backend = backend or ("native" if getattr(dyn, "native", None) is not None else "python")
         if self.backend not in ("native", "python"):
             raise ValueError(f"backend must be 'native' or 'python', not {self.backend!r}")
@@ -61,12 +64,17 @@ class StateConverter:
                 np.array([k for b in balls for k in b[2]], int))
 
     def from_ros(self, names, position, velocity, base_position, base_quat_xyzw, lin_vel_local, ang_vel_local):
-        """(q, v) from JointState (names, position, velocity) and Odometry (pose, child-frame twist)."""
-        if self._names is None or list(names) != self._names:
-            self._index(names)
+        """(q, v) from JointState (names, position, velocity) and Odometry (pose, child-frame twist).
+        ``names`` is compared with the last list only when it is another object: a list changed in
+        place is not seen (pass a new list for other names, as a message reader does)."""
+        if names is not self._names_seen:         # (a message reader hands the same list while it holds)
+            if self._names is None or list(names) != self._names:
+                self._index(names)
+            self._names_seen = names
         if self._map is not None:
             quat = np.asarray(base_quat_xyzw, float)
-            return self._map.convert(position, velocity, base_position, quat / np.linalg.norm(quat),
+            # |quat| as np.linalg.norm computes it (sqrt of x.dot(x)), without its Python layers
+            return self._map.convert(position, velocity, base_position, quat / math.sqrt(quat.dot(quat)),
                                      lin_vel_local, ang_vel_local)
         position = np.asarray(position, float)
         velocity = np.asarray(velocity, float)
