@@ -37,6 +37,16 @@ def _cpu_line(cpu0, n):
     return {"main_us": 1e6 * main / n, "other_us": 1e6 * max(proc - main, 0.0) / n}
 
 
+def _close(waiter, subs, node):
+    """The rcl waiter (if any) before the subscriptions it uses, then the node and rclpy."""
+    import rclpy
+    if waiter is not None:
+        waiter.close()
+    subs.destroy()
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
 def state_side(steps: int, io: str) -> dict:
     import numpy as np
     import rclpy
@@ -98,13 +108,8 @@ def state_side(steps: int, io: str) -> dict:
             resends += 1
             send(k * 500_000)
     wall = time.perf_counter() - t0
-    out = {"round_trip_us": 1e6 * wall / steps, "resends": resends, **_cpu_line(cpu0, steps)}
-    if io == "rcl":
-        cw.close()
-    subs.destroy()
-    node.destroy_node()
-    rclpy.try_shutdown()
-    return out
+    _close(cw if io == "rcl" else None, subs, node)
+    return {"round_trip_us": 1e6 * wall / steps, "resends": resends, **_cpu_line(cpu0, steps)}
 
 
 def _standing_ticks(n: int):
@@ -186,11 +191,7 @@ def command_side(work: str, work_us: float, io: str) -> dict:
         answered = ns
         n += 1
     out = {"work_us": 1e6 * busy / max(n, 1), **_cpu_line(cpu0, max(n, 1))} if cpu0 else {}
-    if io == "rcl":
-        sw.close()
-    subs.destroy()
-    node.destroy_node()
-    rclpy.try_shutdown()
+    _close(sw if io == "rcl" else None, subs, node)
     return out
 
 
