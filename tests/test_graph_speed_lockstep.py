@@ -102,7 +102,7 @@ def test_subscription_set_takes_each_queued_message_once(test_node):
     depth-1 stream, once; a topic outside ``on`` taken when another wakes the wait; a message that
     comes after a wait returned is there at the next one."""
     import rclpy
-    from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet
+    from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, wait_for_subscribers
     from std_msgs.msg import String
     node = rclpy.create_node("subscription_set_test", context=test_node.context)
     subs = SubscriptionSet(node, [(String, "/s", STREAM_QOS), (String, "/l", LATCHED_QOS),
@@ -110,10 +110,8 @@ def test_subscription_set_takes_each_queued_message_once(test_node):
     pub_s = test_node.node.create_publisher(String, "/s", STREAM_QOS)
     pub_l = test_node.node.create_publisher(String, "/l", LATCHED_QOS)
     try:
-        deadline = time.monotonic() + 10.0
-        while pub_s.get_subscription_count() < 1 or pub_l.get_subscription_count() < 1:
-            assert time.monotonic() < deadline, "subscriptions did not match"
-            time.sleep(0.01)
+        assert wait_for_subscribers(pub_s, timeout_s=10.0) and wait_for_subscribers(pub_l, timeout_s=10.0), \
+            "subscriptions did not match"
         time.sleep(0.2)
 
         def collect(on, until, timeout=5.0):

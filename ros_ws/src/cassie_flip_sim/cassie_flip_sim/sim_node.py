@@ -245,9 +245,11 @@ class SimNode:
             if step == k and len(effort) == 11:
                 u = effort
             elif step == k:
-                self.node.get_logger().error(
-                    f'/motor_command for step {k} has {len(effort)} torques, not 11: ignored')
+                self._wrong_size(k, len(effort))
         return u
+
+    def _wrong_size(self, k, n):
+        self.node.get_logger().error(f'/motor_command for step {k} has {n} torques, not 11: ignored')
 
     def _newest_command(self, taken, k):
         """Realtime mode: the torques of the newest well-formed command answering a recent step
@@ -437,8 +439,7 @@ class SimNode:
             if status == cw.REFERENCE:
                 self._take_references()
             elif status == cw.WRONG_SIZE:
-                self.node.get_logger().error(
-                    f'/motor_command for step {k} has {cw.last_count} torques, not 11: ignored')
+                self._wrong_size(k, cw.last_count)
             else:                                          # TIMEOUT
                 warned = self._send_again(k, time.monotonic() - t_first, warned)
                 t_sent = time.monotonic()
