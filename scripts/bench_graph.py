@@ -11,7 +11,11 @@ tells whether the loop waits (wake-ups, hand-overs) or computes.  The machine's 
 printed with it: on a shared 2-core machine the factor follows the other processes.
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
-        [--flywheel-torque NM] [--apex M]
+        [--flywheel-torque NM] [--apex M] [--cpu-dma-latency US|off]
+
+The runs hold the CPUs' wake-up latency at 0 us as `flip` does by default (flip_tools.cpu_latency:
+an idle CPU polls, and the simulator's messages to the recorder on the other CPU wake it cheaply);
+the table says whether it was held (it needs write access to /dev/cpu_dma_latency).
 
 (the somersault robot of the README: --motor-speed-scale 3 --flywheel-torque 260 --apex 1.3)
 """
@@ -43,8 +47,17 @@ def one_run(kind: str, out: Path, extra: list[str]) -> dict:
             "cpu": {role: cpu_per_step_us(out / "logs" / f"{role}.log") for role in ("sim", "tsc")},
             "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
             "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
-            "rtf": s.get("real_time_factor"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
+            "rtf": s.get("real_time_factor"), "cpu_latency": latency_cell(run.get("cpu_dma_latency")), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
             "recorded": recorded_fraction(out / "bag"), "load": os.getloadavg()[0], "process_total_s": total}
+
+
+def latency_cell(info) -> str:
+    """run.json's cpu_dma_latency as a table cell: '0 us' when held, 'not held' / 'off' otherwise."""
+    if not info:
+        return "?"
+    if info.get("held"):
+        return f"{info['requested_us']} us"
+    return "off" if info.get("requested_us") is None else "not held"
 
 
 def log_line_us(log: Path, marker: str) -> dict:
@@ -106,8 +119,10 @@ def main() -> int:
     ap.add_argument("--motor-speed-scale", type=float)
     ap.add_argument("--flywheel-torque", type=float)
     ap.add_argument("--apex", type=float)
+    ap.add_argument("--cpu-dma-latency", default="0", metavar="US|off",
+                    help="flip's --cpu-dma-latency (default 0: held at 0 us where this process may)")
     a = ap.parse_args()
-    extra = []
+    extra = ["--cpu-dma-latency", a.cpu_dma_latency]
     for flag, val in (("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
                       ("--apex", a.apex)):
         if val:
@@ -118,12 +133,12 @@ def main() -> int:
             rows.append(one_run(a.kind, Path(tmp) / f"run{i}", extra))
     print(f"flip run {a.kind}: every node its own process, lockstep at 2 kHz sim time")
     print("| run | outcome | graph ready s | sim s | stepping wall s | RTF (stepping) | tsc tick median/p99 us "
-          "| recorded odom/joint_states | load avg | whole command s |")
+          "| recorded odom/joint_states | CPU wake-up latency | load avg | whole command s |")
     print("|-----|---------|---------------|-------|-----------------|----------------|------------------------"
-          "|----------------------------|----------|-----------------|")
+          "|----------------------------|---------------------|----------|-----------------|")
     for i, r in enumerate(rows):
         print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
-              f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
+              f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['cpu_latency']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
     parts = list(dict.fromkeys(n for r in rows for n in r["loop"]))
     if parts:
         print()

@@ -471,6 +471,10 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     run = json.loads((out / "run.json").read_text())
     assert run["sim_params"]["mode"] == "lockstep" and run["sim_params"]["scenario"] == "flat"
     assert _live_processes_of_domain(run["ros_domain_id"]) == []
+    # flip holds /dev/cpu_dma_latency at 0 us where it may (flip_tools.cpu_latency), and says which
+    lat = run["cpu_dma_latency"]
+    assert lat["requested_us"] == 0 and isinstance(lat["held"], bool)
+    assert ("previous_us" in lat) if lat["held"] else lat["reason"]
 
 
 def test_flip_run_rejected_and_interrupted(tmp_path):
