@@ -199,6 +199,54 @@ def test_compiled_state_conversion_equals_the_numpy_one():
         StateConverter(dyn, backend="gpu")
 
 
+def test_state_from_serialized_messages_equals_the_numpy_reading():
+    """StateConverter.from_cdr (the controller node's per-step path: (q, v) compiled straight from the
+    serialized /joint_states and /odom) gives what the numpy views + from_ros give, to the bit, the
+    quaternion's normalisation included (not quite unit, as a message may carry it); a message of
+    another layout (here a longer frame id) is not read (None) until that layout is handed on."""
+    from cassie_flip_sim.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+    sim = Simulator()
+    conv = StateConverter(Dynamics(export_mjcf()))
+    n = len(sim.joint_names)
+
+    def messages(frame):
+        js = RawMessage(JointState(name=list(sim.joint_names), position=[0.0] * n, velocity=[0.0] * n,
+                                   effort=[0.0] * n), joint_state_layout)
+        od = Odometry(child_frame_id="pelvis")
+        od.header.frame_id = frame
+        return js, RawMessage(od, odometry_layout)
+    js, od = messages("world")
+    read_js, read_od = MessageReader(joint_state_layout), MessageReader(odometry_layout)
+    assert conv.from_cdr(bytes(js.buf), bytes(od.buf)) is None            # no layout yet
+    rng = np.random.default_rng(5)
+
+    def step(js, od, k):
+        sim.step(rng.normal(0.0, 40.0, 11) if k % 300 < 100 else np.zeros(11))
+        f, o = js.fields, od.fields
+        sim.state_into(f["position"], f["velocity"], f["effort"], o["pose"], o["twist"])
+        o["pose"][3:] *= 1.0 + rng.normal(0.0, 1e-6)
+        jb, ob = bytes(js.buf), bytes(od.buf)
+        a, b = read_js(jb), read_od(ob)
+        ref = conv.from_ros(read_js.names[0], a["position"], a["velocity"], b["pose"][:3], b["pose"][3:],
+                            b["twist"][:3], b["twist"][3:])
+        return jb, ob, ref
+    for k in range(1200):
+        jb, ob, (q_ref, v_ref) = step(js, od, k)
+        if k == 0:
+            conv.use_cdr_layout(read_js.layout(), read_od.layout())
+        q, v = conv.from_cdr(jb, ob)
+        assert np.array_equal(q, q_ref) and np.array_equal(v, v_ref), k
+    js2, od2 = messages("world_frame")
+    jb, ob, (q_ref, _) = step(js2, od2, 0)
+    assert conv.from_cdr(jb, ob) is None
+    conv.use_cdr_layout(read_js.layout(), read_od.layout())
+    assert np.array_equal(conv.from_cdr(jb, ob)[0], q_ref)
+    assert conv.from_cdr(bytes(js.buf), bytes(od.buf)) is None            # the old layout is gone
+    assert StateConverter(Dynamics(export_mjcf()), backend="python").from_cdr(jb, ob) is None
+
+
 def test_quintic_of_short_vectors_equals_its_array_form():
     """quintic's element-by-element path (1-D float vectors, the outputs of a tick) gives the same
     numbers, to the bit, as its numpy form (which a 2-D input takes), with and without a start

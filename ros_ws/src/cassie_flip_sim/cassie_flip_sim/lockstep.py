@@ -298,6 +298,15 @@ class MessageReader:
             self._const = tuple(runs)
         return fields(buf, self._layout)
 
+    def layout(self):
+        """The layout of the last message: ``(size, runs, offsets)``: its size in bytes, the byte runs
+        outside the numeric fields and stamp as ``(offset, bytes)``, and ``{field: offset}`` (for a
+        compiled reader of the same messages, e.g. tsc_controller's StateMap.set_cdr_layout)."""
+        if self._layout is None:
+            raise ValueError("no message read yet")
+        return (self._size, [(a, c) for a, _, c in self._const],
+                {k: off for k, (off, _, _) in self._layout.items()})
+
 
 class RawMessage:
     """A message serialized once and published as bytes: its stamp and the fields a ``*_layout``

@@ -94,6 +94,26 @@ class StateConverter:
             v[iv:iv + 3] = velocity[k]
         return q, v
 
+    def use_cdr_layout(self, js_layout, odom_layout):
+        """Let :meth:`from_cdr` read serialized messages of this layout: ``js_layout`` and ``odom_layout``
+        are ``(size, runs, offsets)`` (``cassie_flip_sim.lockstep.MessageReader.layout``) of a
+        /joint_states whose names :meth:`from_ros` has indexed and of an /odom.  Native backend only
+        (a no-op with the Python one)."""
+        if self._map is None:
+            return
+        (js_size, js_runs, js_off), (od_size, od_runs, od_off) = js_layout, odom_layout
+        self._map.set_cdr_layout(js_size, list(js_runs), js_off["position"], js_off["velocity"],
+                                 od_size, list(od_runs), od_off["pose"], od_off["twist"])
+
+    def from_cdr(self, js_buf, odom_buf):
+        """(q, v) straight from a serialized /joint_states and /odom (compiled: no numpy views, the
+        quaternion normalised in C++ as numpy's dot rounds), or None when no layout has been given
+        (:meth:`use_cdr_layout`), the backend is Python, or a message has another layout (other
+        names, frame ids or lengths): then read them with :meth:`from_ros`."""
+        if self._map is None:
+            return None
+        return self._map.convert_cdr(js_buf, odom_buf)
+
     def from_simulator(self, sim):
         """(q, v) from a ``cassie_flip_sim.simulator.Simulator`` through the contract arrays."""
         p, quat_wxyz = sim.pelvis_pose()

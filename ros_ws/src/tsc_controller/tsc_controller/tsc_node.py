@@ -92,11 +92,19 @@ class TscNode:
                                     f'{n_t} samples from t={ref.start_time:.3f} s')
 
     def _state(self, js_buf, odom_buf):
-        """(q, v) from the serialized /joint_states and /odom."""
+        """(q, v) from the serialized /joint_states and /odom: compiled from the bytes while the
+        messages keep the layout of the last ones read through numpy views (StateConverter.from_cdr);
+        a message of another layout (the first, other names) is read here and its layout handed on."""
+        conv = self.controller.model_info
+        qv = conv.from_cdr(js_buf, odom_buf)
+        if qv is not None:
+            return qv
         js, od = self.read_js(js_buf), self.read_odom(odom_buf)
         pose, twist = od['pose'], od['twist']
-        return self.controller.model_info.from_ros(self.read_js.names[0], js['position'], js['velocity'],
-                                                   pose[:3], pose[3:], twist[:3], twist[3:])
+        qv = conv.from_ros(self.read_js.names[0], js['position'], js['velocity'],
+                           pose[:3], pose[3:], twist[:3], twist[3:])
+        conv.use_cdr_layout(self.read_js.layout(), self.read_odom.layout())
+        return qv
 
     def _answer(self, k_ns, js_buf, odom_buf):
         if self.cpu0 is None:

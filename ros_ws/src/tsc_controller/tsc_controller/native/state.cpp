@@ -3,7 +3,10 @@
 // copied into (q, v), each ball joint's rotation vector r turned into its quaternion by
 // pinocchio::exp3 and Eigen's quaternion from a rotation matrix (the functions pin.exp3 and
 // pin.Quaternion call), the floating base's pose and twist set.  The base quaternion comes
-// normalised: numpy's norm is BLAS's dot, whose rounding a loop here does not reproduce.
+// normalised to ``convert``: numpy's norm is BLAS's dot.  ``convert_cdr`` reads the same arrays
+// straight from the serialized /joint_states and /odom (a layout set once, checked per message) and
+// normalises the quaternion itself, as OpenBLAS's dot of four doubles rounds: x0*x0, then a fused
+// multiply-add per element (the controller node's per-step path; tests/test_tsc_domains.py).
 #include <pinocchio/fwd.hpp>
 
 #include <pinocchio/spatial.hpp>
@@ -12,7 +15,11 @@
 #include <pybind11/pybind11.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
+#include <cstring>
 #include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace py = pybind11;
@@ -64,6 +71,92 @@ public:
     const double * p = vec(position, n_in_, "position"), * w = vec(velocity, n_in_, "velocity");
     const double * bp = vec(base_position, 3, "base position"), * bqt = vec(base_quat_xyzw, 4, "base quaternion");
     const double * l = vec(lin, 3, "linear velocity"), * a = vec(ang, 3, "angular velocity");
+    return fill(p, w, bp, bqt, l, a);
+  }
+
+  /// The layout of the serialized messages ``convert_cdr`` reads: per message its size, the byte runs
+  /// outside its numeric fields and stamp as (offset, bytes) (frame ids, joint names, sequence
+  /// lengths: what lockstep.MessageReader compares), and the offsets of position and velocity (n_in
+  /// doubles each; /joint_states), pose (7) and twist (6; /odom).
+  void set_cdr_layout(py::ssize_t js_size, const py::list & js_runs, py::ssize_t position_offset,
+                      py::ssize_t velocity_offset, py::ssize_t odom_size, const py::list & odom_runs,
+                      py::ssize_t pose_offset, py::ssize_t twist_offset)
+  {
+    const py::ssize_t n8 = 8 * n_in_;
+    if (position_offset < 0 || position_offset + n8 > js_size || velocity_offset < 0
+        || velocity_offset + n8 > js_size || pose_offset < 0 || pose_offset + 56 > odom_size
+        || twist_offset < 0 || twist_offset + 48 > odom_size)
+      throw std::invalid_argument("StateMap.set_cdr_layout: a field outside its message");
+    js_ = Layout{js_size, runs(js_runs, js_size)};
+    odom_ = Layout{odom_size, runs(odom_runs, odom_size)};
+    pos_off_ = position_offset;
+    vel_off_ = velocity_offset;
+    pose_off_ = pose_offset;
+    twist_off_ = twist_offset;
+    has_layout_ = true;
+  }
+
+  /// (q, v) from a serialized /joint_states and /odom of the layout set, or None when there is no
+  /// layout or a message has another one (other names, frame ids, lengths).
+  py::object convert_cdr(const py::buffer & js, const py::buffer & odom) const
+  {
+    if (!has_layout_)
+      return py::none();
+    const py::buffer_info jb = js.request(), ob = odom.request();
+    const auto * jp = static_cast<const unsigned char *>(jb.ptr);
+    const auto * op = static_cast<const unsigned char *>(ob.ptr);
+    if (jb.itemsize != 1 || ob.itemsize != 1 || !js_.matches(jp, jb.size) || !odom_.matches(op, ob.size))
+      return py::none();
+    pbuf_.resize(n_in_);
+    wbuf_.resize(n_in_);
+    std::memcpy(pbuf_.data(), jp + pos_off_, 8 * n_in_);       // CDR doubles need not be 8-aligned here
+    std::memcpy(wbuf_.data(), jp + vel_off_, 8 * n_in_);
+    double pose[7], twist[6];
+    std::memcpy(pose, op + pose_off_, sizeof pose);
+    std::memcpy(twist, op + twist_off_, sizeof twist);
+    const double * x = pose + 3;
+    const double n = std::sqrt(std::fma(x[3], x[3], std::fma(x[2], x[2], std::fma(x[1], x[1], x[0] * x[0]))));
+    double quat[4];
+    for (int i = 0; i < 4; ++i)
+      quat[i] = x[i] / n;
+    return fill(pbuf_.data(), wbuf_.data(), pose, quat, twist, twist + 3);
+  }
+
+private:
+  struct Layout
+  {
+    py::ssize_t size = -1;
+    std::vector<std::pair<py::ssize_t, std::string>> runs;
+
+    bool matches(const unsigned char * p, py::ssize_t n) const
+    {
+      if (n != size)
+        return false;
+      for (const auto & r : runs)
+        if (std::memcmp(p + r.first, r.second.data(), r.second.size()) != 0)
+          return false;
+      return true;
+    }
+  };
+
+  static std::vector<std::pair<py::ssize_t, std::string>> runs(const py::list & in, py::ssize_t size)
+  {
+    std::vector<std::pair<py::ssize_t, std::string>> out;
+    for (const auto & item : in)
+    {
+      const auto t = item.cast<py::tuple>();
+      const auto off = t[0].cast<py::ssize_t>();
+      auto bytes = t[1].cast<std::string>();
+      if (off < 0 || off + py::ssize_t(bytes.size()) > size)
+        throw std::invalid_argument("StateMap.set_cdr_layout: a byte run outside its message");
+      out.emplace_back(off, std::move(bytes));
+    }
+    return out;
+  }
+
+  py::tuple fill(const double * p, const double * w, const double * bp, const double * bqt, const double * l,
+                 const double * a) const
+  {
     py::array_t<double> qa(nq_), va(nv_);
     double * q = qa.mutable_data(), * v = va.mutable_data();
     for (int i = 0; i < 3; ++i)
@@ -93,9 +186,12 @@ public:
     return py::make_tuple(qa, va);
   }
 
-private:
   long nq_, nv_, bq_, bv_, n_in_;
   std::vector<long> hq_, hv_, hs_, ballq_, ballv_, ballk_;
+  bool has_layout_ = false;
+  Layout js_, odom_;
+  py::ssize_t pos_off_ = 0, vel_off_ = 0, pose_off_ = 0, twist_off_ = 0;
+  mutable std::vector<double> pbuf_, wbuf_;
 };
 
 void bind_state(py::module_ & mod)
@@ -105,5 +201,9 @@ void bind_state(py::module_ & mod)
          py::arg("base_q"), py::arg("base_v"), py::arg("n_in"), py::arg("hq"), py::arg("hv"), py::arg("hs"),
          py::arg("ball_q"), py::arg("ball_v"), py::arg("ball_k"))
     .def("convert", &StateMap::convert, py::arg("position"), py::arg("velocity"), py::arg("base_position"),
-         py::arg("base_quat_xyzw"), py::arg("lin_vel_local"), py::arg("ang_vel_local"));
+         py::arg("base_quat_xyzw"), py::arg("lin_vel_local"), py::arg("ang_vel_local"))
+    .def("set_cdr_layout", &StateMap::set_cdr_layout, py::arg("js_size"), py::arg("js_runs"),
+         py::arg("position_offset"), py::arg("velocity_offset"), py::arg("odom_size"), py::arg("odom_runs"),
+         py::arg("pose_offset"), py::arg("twist_offset"))
+    .def("convert_cdr", &StateMap::convert_cdr, py::arg("js"), py::arg("odom"));
 }
