@@ -493,6 +493,7 @@ class Controller:
         # the shin springs (first and third leaf spring): q rows, stiffness, rest angle
         self._shin_q = self.dyn.spring_q[[0, 2]]
         self._shin_k, self._shin_q0 = self.dyn.spring_k[[0, 2]], self.dyn.q_spring[self._shin_q]
+        self._shin_k_list, self._shin_q0_list = self._shin_k.tolist(), self._shin_q0.tolist()
         self._z_ground = None
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
@@ -805,15 +806,19 @@ class Controller:
         for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
         slide 9 cm and the robot fall)."""
         dyn, cfg = self.dyn, self.cfg
-        P = dyn.P[self._feet_rows].reshape(2, 6)                  # per foot: toe, heel (a copy)
-        z_low = np.minimum(P[:, 2], P[:, 5]).tolist()               # lowest point of each foot
+        # per foot: toe, heel (a copy: its rows are the anchors, never written); the arithmetic below
+        # in Python floats, the same operations as numpy's element-wise ones (a tick's ~10 numpy calls
+        # on 2-element arrays were most of this method's time)
+        P = dyn.P[self._feet_rows].reshape(2, 6)
+        z_low = [min(p[2], p[5]) for p in P.tolist()]               # lowest point of each foot
         if self._foot_anchor is None:
             self._z_ground = min(z_low)
-            self._foot_anchor = [P[0].copy(), P[1].copy()]
+            self._foot_anchor = [P[0], P[1]]
             self.feet_contact = [True, True]
         # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
         # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
-        tau_shin = (-self._shin_k * (dyn.q[self._shin_q] - self._shin_q0)).tolist()
+        tau_shin = [-k * (q - q0) for k, q, q0 in zip(self._shin_k_list, dyn.q[self._shin_q].tolist(),
+                                                      self._shin_q0_list)]
         for k, p in enumerate(P):
             # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
             # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
@@ -823,7 +828,7 @@ class Controller:
                 if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
                     self.feet_contact[k] = False
                 else:
-                    self._foot_anchor[k] = p.copy()
+                    self._foot_anchor[k] = p
                     if tau_shin[k] >= cfg.foot_loaded_spring:
                         # the ground height follows the loaded feet (first estimate, at touch-down, is
                         # a few mm low: the impact pushes the feet into the compliant contact)
