@@ -919,7 +919,7 @@ class Controller:
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
             res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,
-                                 self.cfg.cop_margin_domains.get(int(self.domain)))
+                                 self.cfg.cop_margin_domains.get(int(self.domain)), details)
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

@@ -55,10 +55,18 @@ class ConstrainedDynamics:
 
     One pass over R = [J^T, B, -H]: Y = (J M^-1 J^T)^-1 (J M^-1 [B, -H] + [0, Jdot v]) = -[A, b] and
     X = M^-1 [B, -H] - M^-1 J^T Y = [Abar, bbar].  ``backend`` (default: the Dynamics' own) "native"
-    runs it in the compiled tick (Cholesky of J M^-1 J^T as dposv's), "python" in numpy/LAPACK."""
+    runs it in the compiled tick (Cholesky of J M^-1 J^T as dposv's), "python" in numpy/LAPACK.
+    ``arrays=False`` (native only) leaves Y, X, J, Jdot v in the compiled tick, for its task's QP
+    terms, and none here: no forces, A, b, Abar or bbar from this object."""
 
-    def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None):
+    def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None, arrays: bool = True):
         self.ground = ground
+        if (backend or dyn.backend) == "native" and not arrays:
+            if not dyn.native.eliminate_in_place(dyn.row_set(ground, feet)):
+                raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
+            self.Y = self.X = self.J = self.dJv = self.nc = None
+            self.nu = dyn.nu
+            return
         if (backend or dyn.backend) == "native":
             ok, self.Y, self.X, J, dJv = dyn.native.eliminate(dyn.row_set(ground, feet))
             nc = J.shape[0]
@@ -94,6 +102,8 @@ class ConstrainedDynamics:
 
     def forces(self, u):
         """F = A u + b."""
+        if self.Y is None:
+            raise ValueError("constraint forces not kept: eliminated with arrays=False (details=False)")
         F = self.Y[:, :self.nu] @ u
         F += self.Y[:, self.nu]
         return np.negative(F, out=F)
@@ -283,14 +293,14 @@ class TSC:
         errs = {name: e[sl] for name, sl in task.slices}
         return np.concatenate([x[1] for x in ev]), rhs, errs, task.w
 
-    def _native_terms(self, task, desired, grf, w_du, u_prev):
+    def _native_terms(self, task, desired, grf, w_du, u_prev, details=True):
         """The QP terms of :meth:`solve` from the compiled task rows: outputs evaluated at the tick,
-        rhs and errors here, then H, g (and, with ``grf`` = (C_v, c_v, lower) on the ground, the GRF
-        rows C, up) from the last elimination."""
+        rhs and errors here (the errors by name only with ``details``), then H, g (and, with ``grf`` =
+        (C_v, c_v, lower) on the ground, the GRF rows C, up) from the last elimination."""
         dyn = self.dyn
         task.native.evaluate(dyn.native, [o.value() for o in task.valued])
         e = task.native.errors(desired, task.deg1)         # the rhs stays in the compiled task
-        errs = {name: e[sl] for name, sl in task.slices}
+        errs = {name: e[sl] for name, sl in task.slices} if details else {}
         t_c = time.perf_counter()
         shift = w_du * np.asarray(u_prev, float) if w_du > 0.0 and u_prev is not None else None
         if grf is None:
@@ -301,10 +311,12 @@ class TSC:
         return H, g, C, lo, up, errs, t_c
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
-              w_du: float = 0.0, cop_margin: float | None = None) -> QPResult:
+              w_du: float = 0.0, cop_margin: float | None = None, details: bool = True) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
-        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` overrides the constructor's."""
+        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` overrides the constructor's.
+        ``details=False`` (compiled task rows only): the same u, without the output errors (``y``)
+        and the elimination's arrays (no ``forces``, ``qdd``) in the result."""
         dyn = self.dyn
         nu = dyn.nu
         t_a = time.perf_counter()
@@ -313,11 +325,12 @@ class TSC:
         if dyn.native is None:                # (native: the rows came with the tick's update)
             dyn.constraints(ground, feet)
         t_b = time.perf_counter()
-        cd = ConstrainedDynamics(dyn, ground, feet)
         task = self._task(outputs)
+        lean = not details and task.native is not None
+        cd = ConstrainedDynamics(dyn, ground, feet, arrays=not lean)
         grf = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin) if ground else None
         if task.native is not None:
-            H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, grf, w_du, u_prev)
+            H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, grf, w_du, u_prev, not lean)
         else:
             Jy, rhs, errs, w = self._task_rows(outputs, desired)
             G = Jy @ cd.X                                       # [cA, Jy bbar]: Ydot = cA u + Jy bbar + drift

@@ -207,6 +207,22 @@ public:
   /// definite.  Fresh arrays (a QPResult keeps them past the tick).
   py::tuple eliminate(long sel)
   {
+    const long nc = long(row_sets_.at(sel).size()), m1 = nu_ + 1;
+    const bool ok = eliminate_in_place(sel);
+    py::array_t<double> Ya({nc, m1}), Xa({nv_, m1}), Ja({nc, nv_}), dJva(nc);
+    Eigen::Map<RowMat>(Ja.mutable_data(), nc, nv_) = J_;
+    Eigen::Map<Vec>(dJva.mutable_data(), nc) = dJv_;
+    if (!ok)
+      return py::make_tuple(false, Ya, Xa, Ja, dJva);
+    Eigen::Map<RowMat>(Ya.mutable_data(), nc, m1) = Y;
+    Eigen::Map<RowMat>(Xa.mutable_data(), nv_, m1) = X;
+    return py::make_tuple(true, Ya, Xa, Ja, dJva);
+  }
+
+  /// `eliminate` without the arrays: Y and X stay here for the task's `qp` (the controller node's
+  /// call, which asks for no predicted forces); false when J M^-1 J^T is not positive definite.
+  bool eliminate_in_place(long sel)
+  {
     const auto & rs = row_sets_.at(sel);
     const long nc = long(rs.size()), m1 = nu_ + 1;
     J_.resize(nc, nv_);
@@ -227,17 +243,12 @@ public:
     rhs_.noalias() = J_ * MiBH_;
     rhs_.col(nu_) += dJv_;
     llt_.compute(JMiJt_);
-    py::array_t<double> Ya({nc, m1}), Xa({nv_, m1}), Ja({nc, nv_}), dJva(nc);
-    Eigen::Map<RowMat>(Ja.mutable_data(), nc, nv_) = J_;
-    Eigen::Map<Vec>(dJva.mutable_data(), nc) = dJv_;
     if (llt_.info() != Eigen::Success)
-      return py::make_tuple(false, Ya, Xa, Ja, dJva);
+      return false;
     Y = llt_.solve(rhs_);
     X = MiBH_;
     X.noalias() -= MiJt_ * Y;
-    Eigen::Map<RowMat>(Ya.mutable_data(), nc, m1) = Y;
-    Eigen::Map<RowMat>(Xa.mutable_data(), nv_, m1) = X;
-    return py::make_tuple(true, Ya, Xa, Ja, dJva);
+    return true;
   }
 
   /// numpy views of the tick's buffers (valid for the Tick's life, rewritten by every update)
@@ -353,6 +364,7 @@ PYBIND11_MODULE(_native, mod)
     .def(py::init<py::object, py::object, py::dict>(), py::arg("model"), py::arg("data"), py::arg("tables"))
     .def("update", &Tick::update, py::arg("q"), py::arg("v"))
     .def("eliminate", &Tick::eliminate, py::arg("row_set"))
+    .def("eliminate_in_place", &Tick::eliminate_in_place, py::arg("row_set"))
     .def(
       "buffers", [](py::object self) { return self.cast<Tick &>().buffers(self); },
       "numpy views of the tick's buffers");
