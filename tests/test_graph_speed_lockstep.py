@@ -228,3 +228,20 @@ def test_bench_graph_names_the_steps_a_bag_misses(tmp_path):
     got = bench_graph.recorded_fraction(tmp_path / "holes")
     n = round((0.2 + 0.3 + 0.3 + 0.4 + 0.1) / 0.0005) + 1           # the synthetic run's steps
     assert got == f"1.0000/{(n - 3) / n:.4f} (joint_states 3 missing: 7, 8, last)", got
+
+
+def test_bench_graph_zero_tick_runs_the_graph_with_an_instant_controller(tmp_path):
+    """bench_graph --zero-tick: `flip stand` with the controller node's tick replaced by zero torques
+    (scripts/stand_ins/zero_tick_tsc_node.py); every step answered, with zeros, by that node."""
+    import importlib.util
+
+    from flip_tools.bag import load_bag
+    spec = importlib.util.spec_from_file_location("bench_graph", FLIP.parent / "bench_graph.py")
+    bench_graph = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_graph)
+    out = tmp_path / "zero"
+    r = bench_graph.one_run("backflip", out, ["--cpu-dma-latency", "off", "--apex", "1.3"], zero_tick_s=0.5)
+    assert r["rtf"] and r["rtf"] > 0 and r["cpu"]["tsc"]["main thread"] > 0, r
+    cmd = load_bag(out / "bag", ["/motor_command"])["/motor_command"]
+    assert np.array_equal(np.unique(cmd["step"]), np.arange(1000))       # 0.5 s: every step answered
+    assert not np.any(cmd["effort"])                                        # by the instant controller
