@@ -17,6 +17,12 @@ Per type (others: {"t_log", "msgs"} with the deserialised messages):
   flip_msgs/msg/FlipReference   t_log, refs: list of dicts (plan_id, domain, start_time, t,
                                 output_names, value (n,k), d_value, dd_value, parameters{}, figures)
   std_msgs/msg/String           t_log, data: list[str]
+
+Clock, Odometry, JointState and MotorCommand (the lockstep's tens of thousands of messages a run)
+are read from their bytes at once when every message of the topic has the layout of the first
+(cassie_flip_sim.cdr: the same size, strings and sequence lengths), and the result is checked
+against rosbags' deserialisation of a sample of them (first, last and ~50 between); a topic that
+differs anywhere is deserialised message by message, as every other type is.
 """
 from __future__ import annotations
 
@@ -24,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from cassie_flip_sim.cdr import joint_state_layout, motor_command_layout, odometry_layout
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_types_from_msg
 
@@ -101,22 +108,10 @@ def constants(msgtype: str, store=None) -> dict[str, int]:
         return {}
 
 
-def iter_messages(path: str | Path, topics: list[str] | None = None):
-    """Yield (topic, msgtype, log_time_ns, message) in log-time order."""
-    with Reader(Path(path)) as reader:
-        store = open_typestore_for(reader)
-        conns = [c for c in reader.connections if topics is None or c.topic in topics]
-        for c, t, raw in reader.messages(connections=conns):
-            try:
-                msg = store.deserialize_cdr(raw, c.msgtype)
-            except Exception:  # noqa: BLE001
-                continue
-            yield c.topic, c.msgtype, t, msg
-
-
 def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
     path = Path(path)
     data = BagData(path)
+    raw: dict[str, tuple[str, list, list]] = {}        # topic -> (msgtype, log times ns, serialized)
     with Reader(path) as reader:
         data.start_ns, data.end_ns = reader.start_time, reader.end_time
         store = open_typestore_for(reader)
@@ -124,17 +119,102 @@ def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
         for c in reader.connections:
             d = data.topics.setdefault(c.topic, {"type": c.msgtype, "count": 0})
             d["count"] += c.msgcount
-    raw: dict[str, list] = {}
-    types: dict[str, str] = {}
-    for topic, msgtype, t, msg in iter_messages(path, topics):
-        raw.setdefault(topic, []).append((t * 1e-9, msg))
-        types[topic] = msgtype
-    for topic, items in raw.items():
-        data.arrays[topic] = _convert(types[topic], items)
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        for c, t, msg in reader.messages(connections=conns):
+            entry = raw.setdefault(c.topic, (c.msgtype, [], []))
+            if entry[0] != c.msgtype:                  # one type a topic (the last one's, as before)
+                entry = raw[c.topic] = (c.msgtype, [], [])
+            entry[1].append(t)
+            entry[2].append(msg)
+    for topic, (msgtype, ts, msgs) in raw.items():
+        fast = _fast_arrays(msgtype, msgs, store)
+        if fast is not None:
+            fast["t_log"] = np.array([t * 1e-9 for t in ts])
+            data.arrays[topic] = fast
+            continue
+        items = []
+        for t, m in zip(ts, msgs):
+            try:
+                items.append((t * 1e-9, store.deserialize_cdr(m, msgtype)))
+            except Exception:  # noqa: BLE001 - a message that does not deserialise is left out
+                continue
+        if items:
+            data.arrays[topic] = _convert(msgtype, items)
     for topic in data.topics:
         if topics is None or topic in topics:
             data.arrays.setdefault(topic, {"t_log": np.zeros(0), "msgs": []})
     return data
+
+
+#: per-step types read from their bytes at once: their cassie_flip_sim.cdr layout (None: a bare time)
+_LAYOUTS = {"rosgraph_msgs/msg/Clock": None, "nav_msgs/msg/Odometry": odometry_layout,
+            "sensor_msgs/msg/JointState": joint_state_layout, "flip_msgs/msg/MotorCommand": motor_command_layout}
+_SAMPLES = 50
+
+
+def _fast_arrays(msgtype: str, msgs: list, store) -> dict | None:
+    """The arrays ``_convert`` would give for a topic of a per-step type, read from all its serialized
+    messages at once, or None: another type, messages whose layout differs from the first one's
+    (size, strings, sequence lengths), or a sample deserialised by rosbags that does not convert to
+    the same values, to the bit."""
+    if msgtype not in _LAYOUTS or not msgs:
+        return None
+    n, size = len(msgs), len(msgs[0])
+    if any(len(m) != size for m in msgs):
+        return None
+    buf = b"".join(msgs)
+    rows = np.frombuffer(buf, np.uint8).reshape(n, size)
+    layout_fn = _LAYOUTS[msgtype]
+    names, layout = (None, {}) if layout_fn is None else layout_fn(msgs[0])
+    numeric = np.zeros(size, bool)
+    numeric[4:12] = True                                  # the stamp (a header's, or the bare time)
+    for off, k, dt in layout.values():
+        numeric[off:off + k * dt.itemsize] = True
+    if not (rows[:, ~numeric] == rows[0, ~numeric]).all():
+        return None
+
+    def column(off, k, dt):
+        return np.ndarray((n, k), dt, buffer=buf, offset=off, strides=(size, dt.itemsize)).copy()
+    sec, nanosec = column(4, 1, np.dtype("<i4"))[:, 0], column(8, 1, np.dtype("<u4"))[:, 0]
+    t = sec.astype(float) + 1e-9 * nanosec.astype(float)
+    f = {k: column(*v) for k, v in layout.items()}
+    if msgtype == "rosgraph_msgs/msg/Clock":
+        out = {"sim_t": t}
+    elif msgtype == "nav_msgs/msg/Odometry":
+        pose, twist = f["pose"], f["twist"]
+        out = {"t": t, "pos": pose[:, :3].copy(), "quat": pose[:, 3:7].copy(), "lin": twist[:, :3].copy(),
+               "ang": twist[:, 3:].copy()}
+    else:
+        names = names[0]
+        if len(set(names)) != len(names):
+            return None
+
+        def matrix(a):                                    # (n, len(names)), NaN where a value is missing
+            m = np.full((n, len(names)), np.nan)
+            k = min(a.shape[1], len(names))
+            m[:, :k] = a[:, :k]
+            return m
+        if msgtype == "sensor_msgs/msg/JointState":
+            out = {"t": t, "names": list(names), "pos": matrix(f["position"]), "vel": matrix(f["velocity"]),
+                   "eff": matrix(f["effort"])}
+        else:
+            out = {"t": t, "step": f["step"][:, 0].astype(np.int64), "names": list(names),
+                   "effort": matrix(f["effort"]), "compute_time_us": f["compute_time_us"][:, 0].astype(float)}
+    # rosbags' reading of a sample (first, last, ~50 between) must give the same values
+    idx = np.unique(np.r_[0, n - 1, np.linspace(0, n - 1, _SAMPLES).astype(int)])
+    try:
+        ref = _CONVERTERS[msgtype]([store.deserialize_cdr(msgs[i], msgtype) for i in idx])
+    except Exception:  # noqa: BLE001 - let the message-by-message path deal with it
+        return None
+    for key, val in ref.items():
+        if isinstance(val, np.ndarray):
+            if not np.array_equal(out[key][idx], val, equal_nan=True):
+                return None
+        elif key in out and out[key] != val:
+            return None
+        else:
+            out[key] = val                                # frame ids: the same in every message
+    return out
 
 
 def _convert(msgtype: str, items: list) -> dict:
