@@ -122,7 +122,7 @@ def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
         for c, t, msg in reader.messages(connections=conns):
             entry = raw.setdefault(c.topic, (c.msgtype, [], []))
-            if entry[0] != c.msgtype:                  # one type a topic (the last one's, as before)
+            if entry[0] != c.msgtype:     # (ROS 2 matches one type a topic; here: keep the newest type)
                 entry = raw[c.topic] = (c.msgtype, [], [])
             entry[1].append(t)
             entry[2].append(msg)
