@@ -16,9 +16,13 @@ through rclpy's Python.
 Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
 counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
 (zero torques, no waiting).
+A stop (SIGINT, SIGTERM) ends the loop at a step's end: the node installs its own handlers instead of
+rclpy's, which shut the context down from another thread at once (a step then lost the messages it
+had not yet published, and the run its last ``/clock`` and the summary lines of the log).
 """
 from __future__ import annotations
 
+import signal
 import struct
 import sys
 import time
@@ -28,6 +32,7 @@ import rclpy
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -82,6 +87,7 @@ def _declare(node, name, default):
 
 class SimNode:
     def __init__(self):
+        self.stop_requested = False     # a SIGINT/SIGTERM came (request_stop): end at the step's end
         self.node = rclpy.create_node('sim_node')
         n = self.node
         self.mode = _declare(n, 'mode', 'lockstep')
@@ -172,10 +178,8 @@ class SimNode:
         if k % self.clock_every == 0 and k != self.clock_k:
             self._publish_clock(k)
         if self.rcl_io:
-            # /odom and /joint_states of a step in one call: a SIGINT (KeyboardInterrupt at the next
-            # bytecode) between two calls left the last step's /joint_states out of the bag. (The
-            # rclpy path below can still be split so: Python offers no way to hold the interrupt.)
-            _rcl_io.publish_pair(self._ptr['odom'], self.msg_odom.buf, self._ptr['js'], self.msg_js.buf, ns)
+            _rcl_io.publish(self._ptr['odom'], self.msg_odom.buf, ns)
+            _rcl_io.publish(self._ptr['js'], self.msg_js.buf, ns)
             return
         for m in (self.msg_odom, self.msg_js):
             m.stamp(ns)
@@ -262,6 +266,13 @@ class SimNode:
                 best = (step, effort)
         return None if best is None else best[1]
 
+    def request_stop(self, signum=None, frame=None):
+        """Signal handler: the loop ends once the step under way has ended (see the module doc)."""
+        self.stop_requested = True
+
+    def _running(self):
+        return not self.stop_requested and rclpy.ok()
+
     def _hold_for_reference(self, k, domain):
         """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
         if self.plan_in_force is None or self.plan_in_force[1] == FlipReference.DOMAIN_STANDING:
@@ -273,7 +284,7 @@ class SimNode:
             if dom == domain and start >= now_ns - self.dt_ns:
                 break
             self._handle_incoming(self.subs.wait(0.1), -1)
-            if self.subs.interrupted:
+            if self.subs.interrupted or not self._running():
                 return
         else:
             self.node.get_logger().warn(
@@ -297,10 +308,10 @@ class SimNode:
             while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
                       for p in pubs):
                 self.executor.spin_once(timeout_sec=0.01)
-                if not rclpy.ok():
+                if not self._running():
                     return 0
             settled = time.monotonic() + MATCH_SETTLE_S
-            while time.monotonic() < settled and rclpy.ok():
+            while time.monotonic() < settled and self._running():
                 self.executor.spin_once(timeout_sec=0.01)
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
         if self.rcl_io and self.mode == 'lockstep' and self.controller == 'tsc':
@@ -320,7 +331,7 @@ class SimNode:
         clock = time.perf_counter
         last_cmd_k, damping = 0, False
         try:   # the summary also when SIGINT (KeyboardInterrupt) ends the run
-            while rclpy.ok() and (n_steps is None or k < n_steps):
+            while self._running() and (n_steps is None or k < n_steps):
                 if self.reset_requested:
                     self.sim.reset()
                     self.reset_requested = False
@@ -408,7 +419,7 @@ class SimNode:
             cmd = self._handle_incoming(self.subs.wait(COMMAND_RESEND_S), k)
             if cmd is not None:
                 return cmd
-            if self.subs.interrupted or not rclpy.ok():
+            if self.subs.interrupted or not self._running():
                 return None
             if time.monotonic() - t_sent >= COMMAND_RESEND_S:
                 warned = self._send_again(k, time.monotonic() - t_sent, warned)
@@ -435,7 +446,7 @@ class SimNode:
             status = cw.wait(k, max(int(left * 1e9), 0), u)
             if status == cw.GOT:
                 return u
-            if status == cw.INTERRUPTED or not rclpy.ok():
+            if status == cw.INTERRUPTED or not self._running():
                 self.subs.interrupted = True
                 return None
             if status == cw.REFERENCE:
@@ -453,13 +464,17 @@ class SimNode:
 
 def main(args=None):
     pin_to_lockstep_cpu()
-    rclpy.init(args=args)
+    # no rclpy signal handlers: they shut the context down at once; the node's own end the loop
+    # between steps (module doc); until the node exists, a stop ends the process as Python's would
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = SimNode()
     except (ValueError, FileNotFoundError) as e:
         print(f'sim_node: {e}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    signal.signal(signal.SIGINT, node.request_stop)
+    signal.signal(signal.SIGTERM, node.request_stop)
     def close():
         node.close_io()
         node.subs.destroy()

@@ -59,14 +59,6 @@ void publish(std::uintptr_t publisher, py::buffer buf, std::int64_t stamp_ns) {
     rcl_fail("rcl_publish_serialized_message");
 }
 
-// Two messages published in one call, both stamped stamp_ns: no Python runs between them, so a
-// KeyboardInterrupt (SIGINT, raised at the next bytecode) cannot land between the two.
-void publish_pair(std::uintptr_t first, py::buffer first_buf, std::uintptr_t second, py::buffer second_buf,
-                  std::int64_t stamp_ns) {
-  publish(first, first_buf, stamp_ns);
-  publish(second, second_buf, stamp_ns);
-}
-
 // Little-endian CDR reader (alignment relative to the end of the 4-byte encapsulation header).
 struct Cdr {
   const std::uint8_t *b;
@@ -321,9 +313,6 @@ PYBIND11_MODULE(_rcl_io, mod) {
   mod.def("publish", &publish, py::arg("publisher"), py::arg("buf"), py::arg("stamp_ns") = -1,
           "Publish the serialized message in buf (rclpy publisher's pointer); stamp_ns >= 0 writes its "
           "header stamp first.");
-  mod.def("publish_pair", &publish_pair, py::arg("first"), py::arg("first_buf"), py::arg("second"),
-          py::arg("second_buf"), py::arg("stamp_ns") = -1,
-          "publish() of two messages in one call: a SIGINT cannot land between them.");
   py::class_<CommandWait> cw(mod, "CommandWait");
   cw.def(py::init<std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t>(), py::arg("context"),
          py::arg("command_subscription"), py::arg("reference_subscription"), py::arg("sigint_guard"))
