@@ -49,7 +49,9 @@ def one_run(kind: str, out: Path, extra: list[str], zero_tick_s: float = 0.0) ->
     t0 = time.perf_counter()
     if zero_tick_s:
         cmd = ["stand", "--duration", str(zero_tick_s), "--exe", f"tsc={sys.executable} {ZERO_TICK_TSC}"]
-        extra = [e for i, e in enumerate(extra) if e != "--apex" and (i == 0 or extra[i - 1] != "--apex")]
+        if "--apex" in extra:                     # a run's option a stand does not have
+            i = extra.index("--apex")
+            extra = extra[:i] + extra[i + 2:]
     else:
         cmd = ["run", kind]
     rc = subprocess.run([sys.executable, str(FLIP), *cmd, "--out", str(out), *extra],

@@ -149,6 +149,14 @@ def _recorder_pid(out):
     raise AssertionError(f"no recorder process for {out}")
 
 
+def _wait_sim_running(p, out):
+    """Until the simulator of the `flip` process ``p`` (output DIR ``out``) has started stepping, or
+    ``p`` has ended (flip's own graph timeout)."""
+    sim_log = out / "logs" / "sim.log"
+    while p.poll() is None and not (sim_log.exists() and "running" in sim_log.read_text()):
+        time.sleep(0.02)
+
+
 def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl"):
     """`flip stand`; with ``stall_recorder_s``, the recorder is stopped (SIGSTOP) that long once the
     simulator runs; ``io``: its --io."""
@@ -158,9 +166,7 @@ def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl"):
                           "--io", io],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if stall_recorder_s:
-        sim_log = out / "logs" / "sim.log"
-        while p.poll() is None and not (sim_log.exists() and "running" in sim_log.read_text()):
-            time.sleep(0.02)
+        _wait_sim_running(p, out)
         pid = _recorder_pid(out)
         os.kill(pid, signal.SIGSTOP)
         time.sleep(stall_recorder_s)
@@ -258,11 +264,7 @@ def test_a_run_stopped_midway_records_odom_and_joint_states_of_the_same_steps(tm
     out = tmp_path / "stopped"
     p = subprocess.Popen([sys.executable, str(FLIP), "stand", "--duration", "60", "--out", str(out)],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    sim_log = out / "logs" / "sim.log"
-    deadline = time.monotonic() + 120
-    while p.poll() is None and not (sim_log.exists() and "running" in sim_log.read_text()):
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    _wait_sim_running(p, out)
     time.sleep(1.0)
     p.send_signal(signal.SIGINT)
     output = p.communicate(timeout=120)[0]
@@ -271,5 +273,5 @@ def test_a_run_stopped_midway_records_odom_and_joint_states_of_the_same_steps(tm
     od, js = (np.unique(np.round(bag[t]["t"] / 0.0005)) for t in ("/odom", "/joint_states"))
     assert len(od) > 200 and np.array_equal(od, js), (len(od), len(js), od[-3:], js[-3:])
     assert round(bag["/clock"]["sim_t"][-1] / 0.0005) == od[-1]
-    log = sim_log.read_text()
+    log = (out / "logs" / "sim.log").read_text()
     assert "done:" in log and "loop per step" in log and "cpu per step" in log, log

@@ -61,15 +61,14 @@ class ConstrainedDynamics:
 
     def __init__(self, dyn, ground: bool, feet=(True, True), backend: str | None = None, arrays: bool = True):
         self.ground = ground
-        if (backend or dyn.backend) == "native" and not arrays:
-            if not dyn.native.eliminate_in_place(dyn.row_set(ground, feet)):
-                raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
-            self.Y = self.X = self.J = self.dJv = self.nc = None
-            self.nu = dyn.nu
-            return
-        if (backend or dyn.backend) == "native":
+        native = (backend or dyn.backend) == "native"
+        if native and not arrays:
+            ok = dyn.native.eliminate_in_place(dyn.row_set(ground, feet))
+            self.Y = self.X = J = dJv = nc = None
+        elif native:
             ok, self.Y, self.X, J, dJv = dyn.native.eliminate(dyn.row_set(ground, feet))
             nc = J.shape[0]
+        if native:
             if not ok:
                 raise np.linalg.LinAlgError("J M^-1 J^T not positive definite (native Cholesky)")
         else:
