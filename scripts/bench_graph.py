@@ -11,7 +11,8 @@ tells whether the loop waits (wake-ups, hand-overs) or computes.  The machine's 
 printed with it: on a shared 2-core machine the factor follows the other processes.
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
-        [--flywheel-torque NM] [--apex M] [--cpu-dma-latency US|off] [--zero-tick S]
+        [--flywheel-torque NM] [--apex M] [--cpu-dma-latency US|off] [--lockstep-sched batch|other]
+        [--zero-tick S]
 
 ``--zero-tick S`` measures the ceiling instead: S seconds of `flip stand` whose controller node
 answers every state at once with zero torques (scripts/stand_ins/zero_tick_tsc_node.py), everything
@@ -20,7 +21,9 @@ so the ceiling is a conservative one).
 
 The runs hold the CPUs' wake-up latency at 0 us as `flip` does by default (flip_tools.cpu_latency:
 an idle CPU polls, and the simulator's messages to the recorder on the other CPU wake it cheaply);
-the table says whether it was held (it needs write access to /dev/cpu_dma_latency).
+the table says whether it was held (it needs write access to /dev/cpu_dma_latency). The simulator and
+controller run as SCHED_BATCH threads on their shared CPU, as `flip` does in lockstep
+(``--lockstep-sched other`` to compare with the kernel's default policy).
 
 (the somersault robot of the README: --motor-speed-scale 3 --flywheel-torque 260 --apex 1.3)
 """
@@ -64,7 +67,8 @@ def one_run(kind: str, out: Path, extra: list[str], zero_tick_s: float = 0.0) ->
             "cpu": {role: cpu_per_step_us(out / "logs" / f"{role}.log") for role in ("sim", "tsc")},
             "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
             "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
-            "rtf": s.get("real_time_factor"), "cpu_latency": latency_cell(run.get("cpu_dma_latency")), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
+            "rtf": s.get("real_time_factor"), "cpu_latency": latency_cell(run.get("cpu_dma_latency")),
+            "sched": run.get("lockstep_sched", "?"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
             "recorded": recorded_fraction(out / "bag"), "load": os.getloadavg()[0], "process_total_s": total}
 
 
@@ -138,11 +142,14 @@ def main() -> int:
     ap.add_argument("--apex", type=float)
     ap.add_argument("--cpu-dma-latency", default="0", metavar="US|off",
                     help="flip's --cpu-dma-latency (default 0: held at 0 us where this process may)")
+    ap.add_argument("--lockstep-sched", default="batch", choices=["batch", "other"],
+                    help="flip's --lockstep-sched: the simulator's and controller's scheduling policy "
+                         "(default batch, flip's own default in lockstep)")
     ap.add_argument("--zero-tick", type=float, metavar="S", default=0.0,
                     help="instead: S seconds of `flip stand` with a controller that answers at once "
                          "(zero torques): the factor the graph would reach with an instant controller")
     a = ap.parse_args()
-    extra = ["--cpu-dma-latency", a.cpu_dma_latency]
+    extra = ["--cpu-dma-latency", a.cpu_dma_latency, "--lockstep-sched", a.lockstep_sched]
     for flag, val in (("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
                       ("--apex", a.apex)):
         if val:
@@ -157,12 +164,12 @@ def main() -> int:
     else:
         print(f"flip run {a.kind}: every node its own process, lockstep at 2 kHz sim time")
     print("| run | outcome | graph ready s | sim s | stepping wall s | RTF (stepping) | tsc tick median/p99 us "
-          "| recorded odom/joint_states | CPU wake-up latency | load avg | whole command s |")
+          "| recorded odom/joint_states | CPU wake-up latency | sched | load avg | whole command s |")
     print("|-----|---------|---------------|-------|-----------------|----------------|------------------------"
-          "|----------------------------|---------------------|----------|-----------------|")
+          "|----------------------------|---------------------|-------|----------|-----------------|")
     for i, r in enumerate(rows):
         print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
-              f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['cpu_latency']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
+              f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['cpu_latency']} | {r['sched']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
     parts = list(dict.fromkeys(n for r in rows for n in r["loop"]))
     if parts:
         print()

@@ -475,6 +475,8 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     lat = run["cpu_dma_latency"]
     assert lat["requested_us"] == 0 and isinstance(lat["held"], bool)
     assert ("previous_us" in lat) if lat["held"] else lat["reason"]
+    # the pinned simulator and controller run SCHED_BATCH in lockstep (cassie_flip_sim.lockstep)
+    assert run["lockstep_sched"] == "batch"
 
 
 def test_flip_run_rejected_and_interrupted(tmp_path):

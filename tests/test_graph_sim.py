@@ -76,3 +76,6 @@ def test_realtime_stand_runs_on_the_wall_clock_and_counts_late_commands(tmp_path
     m = re.search(r"done: (\d+) steps, 1\.000 s sim in ([0-9.]+) s wall.*realtime: (\d+) late steps, "
                   r"(\d+) steps without a new command", log)
     assert m and int(m.group(1)) == 2000 and float(m.group(2)) >= 0.99 and int(m.group(4)) < 2000, log
+    # on the wall clock the nodes keep the kernel's default policy (woken threads preempt)
+    assert json.loads((out / "run.json").read_text())["lockstep_sched"] == "other"
+    assert "running: mode=realtime" in log and "SCHED_OTHER" in log and "SCHED_BATCH" not in log

@@ -4,6 +4,7 @@ every step's /odom and /joint_states (and /clock at its 200 Hz) in the bag even 
 for half a second, log times = wall-clock receive times, and two runs with the controller in the
 loop give the same states to the bit."""
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -20,6 +21,41 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
+
+
+_PIN_PROBE = """
+import os, threading
+from cassie_flip_sim.lockstep import pin_to_lockstep_cpu, scheduling_note
+cpu = pin_to_lockstep_cpu()
+seen = {}
+t = threading.Thread(target=lambda: seen.update(later=os.sched_getscheduler(0)))   # made after the pin
+t.start(); t.join()
+print(cpu, os.sched_getscheduler(0), seen["later"], int(os.SCHED_BATCH), int(os.SCHED_OTHER), scheduling_note())
+"""
+
+
+def _pin_probe(cpu, sched):
+    env = {**os.environ, "FLIP_LOCKSTEP_CPU": cpu, "FLIP_LOCKSTEP_SCHED": sched}
+    return subprocess.run([sys.executable, "-c", _PIN_PROBE], env=env, capture_output=True, text=True,
+                          timeout=60)
+
+
+def test_pin_to_lockstep_cpu_sets_the_policy_for_every_thread():
+    """FLIP_LOCKSTEP_SCHED=batch: the pinned process and a thread it starts later (as rclpy.init's DDS
+    threads are) run SCHED_BATCH on the one CPU; unset leaves the default policy; an unknown name is
+    refused with the variable named; no pinning (empty CPU) leaves the policy alone."""
+    cpu = str(min(os.sched_getaffinity(0)))
+    r = _pin_probe(cpu, "batch")
+    got, main, later, batch, other = r.stdout.split()[:5]
+    assert r.returncode == 0 and got == cpu and main == later == batch, r.stdout + r.stderr
+    assert r.stdout.rstrip().endswith(f"cpus [{cpu}], SCHED_BATCH")
+    r = _pin_probe(cpu, "")
+    got, main, later, batch, other = r.stdout.split()[:5]
+    assert r.returncode == 0 and main == later == other and "SCHED_OTHER" in r.stdout, r.stdout + r.stderr
+    r = _pin_probe(cpu, "fifo")
+    assert r.returncode != 0 and "FLIP_LOCKSTEP_SCHED='fifo'" in r.stderr, r.stderr
+    r = _pin_probe("", "batch")
+    assert r.returncode == 0 and r.stdout.split()[:3] == ["None", other, other], r.stdout + r.stderr
 
 
 @pytest.mark.parametrize("names, n_vel", [(["a"], 0), (["left_hip_roll", "bb", "ccc"], 3),
@@ -211,6 +247,11 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
     assert bench_graph.cpu_per_step_us(out_a / "logs" / "sim.log")["main thread"] <= sum(loop.values()) + 1
     assert loop["simulate"] > 0 and loop["publish state"] > 0 and loop["wait for command"] > 0
     assert loop["planner holds"] == 0 and loop["rest"] >= 0                # standing: nothing to plan
+    # both nodes pinned to one CPU as SCHED_BATCH threads (flip's default in lockstep), as the kernel
+    # reports it to each
+    for role, line in (("sim", "running: mode=lockstep"), ("tsc", "controller built")):
+        text = (out_a / "logs" / f"{role}.log").read_text()
+        assert re.search(line + r".*; cpus \[\d+\], SCHED_BATCH\n", text), (role, text[-2000:])
     for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang"))):
         _, ia = np.unique(a[topic]["t"], return_index=True)
         _, ib = np.unique(b[topic]["t"], return_index=True)

@@ -37,6 +37,7 @@ from .rosenv import node_env
 
 _PR_SET_PDEATHSIG = 1
 LOCKSTEP_CPU_ENV = "FLIP_LOCKSTEP_CPU"      # read by cassie_flip_sim.lockstep.pin_to_lockstep_cpu
+LOCKSTEP_SCHED_ENV = "FLIP_LOCKSTEP_SCHED"  # the same function's scheduling policy ('batch', 'other')
 PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 #: SHM: 16 MiB segment per participant, 16,384-message port queue (~4,000 lockstep steps for the
 #: recorder, which takes ~4 messages a step); UDP bound to loopback; participants announced every

@@ -41,7 +41,7 @@ from std_srvs.srv import Trigger
 from . import _rcl_io
 from .lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet, cpu_per_step_line,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
-                       odometry_layout, pin_to_lockstep_cpu, stamp_to_ns)
+                       odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns)
 from .node_stop import run_until_stopped
 from .contacts import Event
 from .model import Scenario, export_mjcf
@@ -320,7 +320,7 @@ class SimNode:
                 self.subs.subscription('/fslip/reference').handle.pointer, self.subs.sigint_guard.handle.pointer)
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
-                 f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m')
+                 f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m; {scheduling_note()}')
         wall0 = time.monotonic()
         cpu0 = (time.process_time(), time.thread_time())
         k = 0

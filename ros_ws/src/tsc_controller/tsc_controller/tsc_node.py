@@ -23,7 +23,8 @@ from cassie_flip_sim import _rcl_io
 from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
                                       SubscriptionSet, cpu_per_step_line, joint_state_layout,
                                       motor_command_layout, odometry_layout,
-                                      pin_to_lockstep_cpu, read_stamp_ns, stamp_to_ns)
+                                      pin_to_lockstep_cpu, read_stamp_ns, scheduling_note,
+                                      stamp_to_ns)
 from cassie_flip_sim.node_stop import run_until_stopped
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from nav_msgs.msg import Odometry
@@ -142,7 +143,8 @@ class TscNode:
             self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
                                          flywheel_torque=self.flywheel_torque, **self.overrides)
             self.node.get_logger().info('controller built from /robot_description'
-                                        + (f', settings {self.overrides}' if self.overrides else ''))
+                                        + (f', settings {self.overrides}' if self.overrides else '')
+                                        + f'; {scheduling_note()}')
             for m in self.pending:
                 self._on_reference(m)
             self.pending.clear()
