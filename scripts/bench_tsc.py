@@ -6,7 +6,9 @@ and a comparison of QP solvers on the QPs of that run.
 
 Numbers are wall time of this process on this machine.  The closed-loop rows interleave a MuJoCo
 step between ticks (cold caches); the replay rows feed the recorded states back to back to a fresh
-controller, as a controller process of its own (tsc_node) sees them.  On a shared machine the
+controller; the last table replays them as the node calls ``compute`` (no details) with this
+process pinned to one CPU and a 1 us sleep, or a hand-over to another thread or process and back,
+between two ticks: what the graph does between them, without the graph.  On a shared machine the
 medians of successive runs differ by up to 2x; the best replay is the least disturbed one.
 BLAS is pinned to one thread (set before numpy is imported): with OpenBLAS' default thread pool the
 small matrix products of a tick are 5-10x slower on a loaded 2-core machine.
@@ -56,6 +58,62 @@ def stages(parts, tick, backend):
     row("QP assembly + solve", parts["qp"])
     row("rest (domain logic, torque limits)", np.array(tick) - sum(np.array(x) for x in parts.values()))
     row("TOTAL compute() (target 150 / 400)", tick)
+
+
+#: a partner process for :func:`between_ticks`: answers every byte on fd A with one on fd B
+_PARTNER = "import os, sys\na, b = map(int, sys.argv[1:])\nwhile os.read(a, 1):\n    os.write(b, b'x')\n"
+
+
+def between_ticks(states, a):
+    """The node's call, ``compute(..., details=False)``, replayed with this process pinned to one CPU
+    and something between two ticks, as in the graph: nothing (back to back), a 1 us sleep (the CPU
+    idles and is woken by a timer), a hand-over to another thread of this process and back (the
+    middleware's receive thread), a hand-over to another process on the same CPU and back (the
+    simulator). The tick is timed alone each time; what the hand-over evicts shows in it."""
+    import subprocess
+    import threading
+    cpus = os.sched_getaffinity(0)
+    cpu = max(cpus)
+    os.sched_setaffinity(0, {cpu})
+    a_r, a_w = os.pipe()
+    b_r, b_w = os.pipe()
+    c_r, c_w = os.pipe()
+    d_r, d_w = os.pipe()
+
+    def thread_partner():
+        while os.read(c_r, 1):
+            os.write(d_w, b"x")
+    threading.Thread(target=thread_partner, daemon=True).start()
+    proc = subprocess.Popen([sys.executable, "-c", _PARTNER, str(a_r), str(b_w)], pass_fds=(a_r, b_w))
+
+    def hand_over(w, r):
+        def f():
+            os.write(w, b"x")
+            os.read(r, 1)
+        return f
+    cases = [("back to back", None), ("after a 1 us sleep", lambda: time.sleep(1e-6)),
+             ("after a hand-over to a thread", hand_over(c_w, d_r)),
+             ("after a hand-over to a process", hand_over(a_w, b_r))]
+    print(f"\nThe node's call (details=False) replayed on CPU {cpu}, {len(states)} ticks, with what runs between "
+          "two ticks")
+    print(f"| {'between ticks':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} |")
+    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
+    try:
+        for name, before in cases:
+            ctl = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
+            times = []
+            for q, v, t in states:
+                if before is not None:
+                    before()
+                t0 = time.perf_counter()
+                ctl.compute(q, v, t, details=False)
+                times.append(time.perf_counter() - t0)
+            row(name, times)
+    finally:
+        os.close(a_w)                   # the partner's read returns b"": it exits
+        os.close(c_w)
+        proc.wait(timeout=10)
+        os.sched_setaffinity(0, cpus)
 
 
 def main():
@@ -122,6 +180,7 @@ def main():
     row("TOTAL compute(), best replay", best[0])
     print("\nStages of the best replay")
     stages(best[2], best[1], a.backend)
+    between_ticks(states[n_w:], a)
 
     # ---- solver comparison on the recorded QPs (11 variables, 16 GRF rows + box)
     print(f"\nQP solvers on the {len(qps)} recorded QPs (11 variables, {qps[0][2].shape[0]} inequality rows + bounds)")
