@@ -12,7 +12,11 @@ printed with it: on a shared 2-core machine the factor follows the other process
 
     .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
         [--flywheel-torque NM] [--apex M] [--cpu-dma-latency US|off] [--lockstep-sched batch|other]
-        [--zero-tick S]
+        [--zero-tick S] [--versus "FLIP OPTIONS"]
+
+``--versus "OPTIONS"`` compares two configurations the way this machine needs it (its speed drifts
+by ±10 % within an hour): each run is a pair, the runs as given (A) and then with OPTIONS added to
+`flip`'s (B), one after the other; the last line gives B's factor against A's pair by pair.
 
 ``--zero-tick S`` measures the ceiling instead: S seconds of `flip stand` whose controller node
 answers every state at once with zero torques (scripts/stand_ins/zero_tick_tsc_node.py), everything
@@ -32,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import statistics
 import subprocess
 import sys
@@ -133,6 +138,17 @@ def recorded_fraction(bag: Path) -> str:
     return out + (f" ({'; '.join(missing)})" if missing else "")
 
 
+def paired_line(rows: list[dict]) -> str:
+    """'B against A, pair by pair: ...' from rows of alternating configs (A, B, A, B, ...): each
+    pair's difference of the real-time factor, in how many B is faster, and the median difference."""
+    pairs = [(a["rtf"], b["rtf"]) for a, b in zip(rows[0::2], rows[1::2]) if a["rtf"] and b["rtf"]]
+    if not pairs:
+        return "B against A: no pair with both factors"
+    d = [b - a for a, b in pairs]
+    return (f"B against A, pair by pair: {', '.join(f'{x:+.3f}' for x in d)}; B faster in "
+            f"{sum(x > 0 for x in d)} of {len(d)}, median difference {statistics.median(d):+.3f}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kind", default="backflip", choices=["backflip", "frontflip", "hop"])
@@ -148,16 +164,24 @@ def main() -> int:
     ap.add_argument("--zero-tick", type=float, metavar="S", default=0.0,
                     help="instead: S seconds of `flip stand` with a controller that answers at once "
                          "(zero torques): the factor the graph would reach with an instant controller")
+    ap.add_argument("--versus", metavar="\"OPTIONS\"",
+                    help="flip options of a second configuration (B), e.g. \"--lockstep-sched other\": "
+                         "each run is then a pair, A then B")
     a = ap.parse_args()
     extra = ["--cpu-dma-latency", a.cpu_dma_latency, "--lockstep-sched", a.lockstep_sched]
     for flag, val in (("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
                       ("--apex", a.apex)):
         if val:
             extra += [flag, str(val)]
+    configs = [("A", extra)] + ([("B", extra + shlex.split(a.versus))] if a.versus else [])
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(a.runs):
-            rows.append(one_run(a.kind, Path(tmp) / f"run{i}", extra, a.zero_tick))
+            for name, flags in configs:
+                rows.append({**one_run(a.kind, Path(tmp) / f"run{i}{name}", flags, a.zero_tick), "config": name})
+    label = [f"{i // len(configs)}{r['config']}" if a.versus else str(i) for i, r in enumerate(rows)]
+    if a.versus:
+        print(f"A: the options given; B: with {a.versus} added")
     if a.zero_tick:
         print(f"flip stand {a.zero_tick:g} s with a zero-cost controller tick (stand_ins/zero_tick_tsc_node.py): "
               "every node its own process, lockstep at 2 kHz sim time")
@@ -168,7 +192,7 @@ def main() -> int:
     print("|-----|---------|---------------|-------|-----------------|----------------|------------------------"
           "|----------------------------|---------------------|-------|----------|-----------------|")
     for i, r in enumerate(rows):
-        print(f"| {i} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
+        print(f"| {label[i]} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
               f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['cpu_latency']} | {r['sched']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
     parts = list(dict.fromkeys(n for r in rows for n in r["loop"]))
     if parts:
@@ -178,7 +202,7 @@ def main() -> int:
         print("| run | " + " | ".join(parts) + " | total |")
         print("|-----|" + "|".join("-" * (len(n) + 2) for n in parts) + "|-------|")
         for i, r in enumerate(rows):
-            print(f"| {i} | " + " | ".join(f"{r['loop'].get(n, float('nan')):.0f}" for n in parts)
+            print(f"| {label[i]} | " + " | ".join(f"{r['loop'].get(n, float('nan')):.0f}" for n in parts)
                   + f" | {sum(r['loop'].values()):.0f} |")
     if any(r["cpu"]["sim"] and r["cpu"]["tsc"] for r in rows):
         print()
@@ -190,12 +214,16 @@ def main() -> int:
         for i, r in enumerate(rows):
             c = [r["cpu"][n].get(k, float("nan")) for n in ("sim", "tsc") for k in ("main thread", "other threads")]
             wall = sum(r["loop"].values())
-            print(f"| {i} | " + " | ".join(f"{x:.0f}" for x in c) + f" | {sum(c):.0f} | {wall:.0f} | "
+            print(f"| {label[i]} | " + " | ".join(f"{x:.0f}" for x in c) + f" | {sum(c):.0f} | {wall:.0f} | "
                   f"{100 * sum(c) / wall if wall else float('nan'):.0f} % |")
-    rtf = [r["rtf"] for r in rows if r["rtf"]]
-    if rtf:
-        print(f"real-time factor over the stepping loop: median {statistics.median(rtf):.3f}, best {max(rtf):.3f}, "
-              f"worst {min(rtf):.3f}" + (" (a ceiling: no controller work)" if a.zero_tick else " (target >= 1.5)"))
+    for name, _ in configs:
+        rtf = [r["rtf"] for r in rows if r["rtf"] and r["config"] == name]
+        if rtf:
+            print(("" if not a.versus else f"{name}: ")
+                  + f"real-time factor over the stepping loop: median {statistics.median(rtf):.3f}, best {max(rtf):.3f}, "
+                  f"worst {min(rtf):.3f}" + (" (a ceiling: no controller work)" if a.zero_tick else " (target >= 1.5)"))
+    if a.versus:
+        print(paired_line(rows))
     return 0
 
 

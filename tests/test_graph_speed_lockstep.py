@@ -294,6 +294,27 @@ def test_bench_graph_zero_tick_runs_the_graph_with_an_instant_controller(tmp_pat
     assert not np.any(cmd["effort"])                                        # by the instant controller
 
 
+def test_bench_graph_versus_runs_pairs_and_compares_them_pair_by_pair():
+    """bench_graph --versus: each run a pair, A with the options given and then B with the extra ones
+    (here the kernel's default policy instead of SCHED_BATCH), each row named and its policy shown,
+    and B's factor against A's pair by pair; paired_line itself on rows of known factors."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("bench_graph", FLIP.parent / "bench_graph.py")
+    bench_graph = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_graph)
+    rows = [{"rtf": x} for x in (1.2, 1.3, 1.25, 1.2, 1.1, None)]
+    assert bench_graph.paired_line(rows) == ("B against A, pair by pair: +0.100, -0.050; B faster in 1 of 2, "
+                                             "median difference +0.025")
+    assert bench_graph.paired_line([{"rtf": None}, {"rtf": 1.0}]).endswith("no pair with both factors")
+    r = subprocess.run([sys.executable, str(FLIP.parent / "bench_graph.py"), "--runs", "1", "--zero-tick", "0.3",
+                        "--cpu-dma-latency", "off", "--versus", "--lockstep-sched other"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    rows = [ln.split("|") for ln in r.stdout.splitlines() if ln.startswith("| 0A |") or ln.startswith("| 0B |")]
+    assert [(c[1].strip(), c[10].strip()) for c in rows[:2]] == [("0A", "batch"), ("0B", "other")], r.stdout
+    assert re.search(r"^B against A, pair by pair: [+-]\d\.\d{3}; B faster in [01] of 1", r.stdout, re.M), r.stdout
+
+
 def test_a_run_stopped_midway_records_odom_and_joint_states_of_the_same_steps(tmp_path):
     """`flip stand` interrupted while stepping (exit 130): the simulator, stopped by SIGINT mid-loop,
     ends at a step's end: the bag holds /odom and /joint_states of the same steps, the last /clock is
