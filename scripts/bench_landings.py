@@ -2,8 +2,9 @@
 """Landing rate of the somersaults without ROS: `tests/offline_flip.py` (simulator, planner and
 controller wired as the node graph wires them, one process) from a set of start times, two flips at
 a time.  Prints a table: per start time whether the flip landed (no body but the feet touched the
-ground until the end, pelvis upright at +-2pi and above 0.8 m), the touch-down state and the time
-of a fall; and the count per flip.  The start time is what differs between graph runs (the request
+ground until the end, pelvis upright at +-2pi and above 0.8 m, and at rest as `flip run`'s verdict
+has it: the pelvis' speed and angular speed below flip_tools.summary.LANDING_CRITERIA's over the
+last 0.5 s), the touch-down state and the time of a fall; and the count per flip.  The start time is what differs between graph runs (the request
 arrives while the robot stands), so the count is the offline estimate of a graph run's landing rate.
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
@@ -24,6 +25,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
 from flip_tools.flip_request import request_distance  # noqa: E402
+from flip_tools.summary import LANDING_CRITERIA  # noqa: E402
 START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
 EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
 
@@ -55,9 +57,20 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
         out.update(flight_s=td - lo, td_rotation_deg=math.degrees(r["pitch"][i]),
                    td_axis_tilt_deg=math.degrees(r["axis_tilt"][i]))
     z_end, pitch_end = float(r["z"][-1]), float(r["pitch"][-1])
+    out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     out["landed"] = bool(r["fell"] is None and td is not None and z_end > 0.8
-                         and abs(pitch_end - EXPECTED[kind]) < 0.3)
+                         and abs(pitch_end - EXPECTED[kind]) < 0.3 and out["at_rest"])
     return out
+
+
+def at_rest(t, speed, ang_speed, criteria=LANDING_CRITERIA) -> bool:
+    """`flip run`'s at-rest check (flip_tools.summary) on a run's samples: over the last
+    ``rest_window_s`` the pelvis' speed and angular speed stay below their limits."""
+    import numpy as np
+    t = np.asarray(t)
+    win = t >= t[-1] - criteria["rest_window_s"]
+    return bool(np.max(np.asarray(speed)[win]) < criteria["rest_max_speed_mps"]
+                and np.max(np.asarray(ang_speed)[win]) < criteria["rest_max_angular_speed_radps"])
 
 
 def main() -> int:
@@ -90,11 +103,12 @@ def main() -> int:
     print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
           f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
-    print("| flip | start s | landed | fell at s | flight s | touch-down rotation deg | axis tilt deg |")
-    print("|------|---------|--------|-----------|----------|-------------------------|---------------|")
+    print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg |")
+    print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731
     for r in rows:
-        print(f"| {r['kind']} | {r['start']:.2f} | {'yes' if r['landed'] else 'no'} | {f(r['fell_at'], 3)} | "
+        print(f"| {r['kind']} | {r['start']:.2f} | {'yes' if r['landed'] else 'no'} | "
+              f"{'yes' if r['at_rest'] else 'no'} | {f(r['fell_at'], 3)} | "
               f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} |")
     for k in a.kinds:
         n = [r["landed"] for r in rows if r["kind"] == k]

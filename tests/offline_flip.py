@@ -37,7 +37,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     ref = session.jumping_reference()
     session.started(start)
     ctl.set_reference(to_sampled(ref, start))
-    log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], events=[], references=[], fell=None)
+    log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], speed=[], ang_speed=[], events=[],
+               references=[], fell=None)
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
         for ev in sim.pop_events():
@@ -71,6 +72,9 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
             log["H"].append(sim.centroidal_pitch_momentum())
             log["dom"].append(info["domain"])
             log["fw"].append(sim.data.qvel[fw_dof])
+            lin, ang = sim.pelvis_twist('world')        # /odom's twist (norms: any frame)
+            log["speed"].append(math.hypot(*lin))
+            log["ang_speed"].append(math.hypot(*ang))
         if sim.body_contacts():
             log["fell"] = sim.time
             break

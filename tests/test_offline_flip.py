@@ -129,8 +129,34 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
     assert r.returncode == 0, r.stdout + r.stderr
     row = next(ln for ln in r.stdout.splitlines() if ln.startswith(f"| {kind} | 0.50 |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert float(cells[4]) > flight_min                             # the flight
-    assert float(cells[5]) == pytest.approx(turn, abs=10.0)         # one turn at touch-down
+    assert float(cells[5]) > flight_min                             # the flight
+    assert float(cells[6]) == pytest.approx(turn, abs=10.0)         # one turn at touch-down
+    # 2.45 s: the robot is still catching the landing, so not at rest, and so not landed yet
+    assert cells[2:4] == ["no", "no"], row
     assert r.stdout.splitlines()[-1].startswith(f'{{"{kind}": ')
     if args:
         assert "distance 0.6 m, platform 0.5 m" in r.stdout
+
+
+def test_bench_landings_at_rest_is_the_verdicts_check():
+    """bench_landings' at-rest check is `flip run`'s (flip_tools.summary.LANDING_CRITERIA): the pelvis'
+    speed and angular speed below their limits over the last 0.5 s, whatever came before."""
+    import importlib.util
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_landings.py"
+    spec = importlib.util.spec_from_file_location("bench_landings", script)
+    bl = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bl)
+    t = np.arange(0.0, 3.0, 0.005)
+    still, turning = np.full(t.size, 0.01), np.full(t.size, 0.1)
+    assert bl.at_rest(t, still, turning)
+    late = still.copy()
+    late[t > 2.7] = 0.2                              # 0.2 m/s in the last 0.3 s (limit 0.15)
+    assert not bl.at_rest(t, late, turning)
+    early = still.copy()
+    early[t < 2.4] = 2.0                             # before the window: does not count
+    assert bl.at_rest(t, early, turning)
+    spin = turning.copy()
+    spin[-1] = 0.6                                   # angular speed 0.6 rad/s at the end (limit 0.5)
+    assert not bl.at_rest(t, still, spin)
+    assert bl.LANDING_CRITERIA["rest_window_s"] == 0.5
