@@ -19,8 +19,8 @@ cross-CPU one (which costs hundreds of µs on a VM). There they run as ``SCHED_B
 ``$FLIP_LOCKSTEP_SCHED`` says so (`flip` does for a lockstep run): a thread woken by a message (the
 partner's or a DDS receive thread) then waits for the running one to block instead of preempting it,
 so a step's messages are published without a switch after each. bench_graph backflips, interleaved
-with the default policy (SCHED_OTHER), ten pairs: publish state 96-127 -> 29-42 µs a step in every
-pair, the real-time factor better in 8 of the 10 (median +0.07; README, Speed).
+with the default policy (SCHED_OTHER), 15 pairs: publish state 96-160 -> 29-50 µs a step in every
+pair, the real-time factor higher in 11 of the 15 (median +0.06; README, Speed).
 """
 from __future__ import annotations
 
