@@ -1,6 +1,11 @@
 """A flip without ROS: cassie_flip_sim.Simulator + fslip_planner.FlipSession + tsc_controller.Controller
 wired the way the node graph wires them (contact events -> planner -> references -> controller),
-in one process.  For tests and experiments; the nodes are the product."""
+in one process.  For tests and experiments; the nodes are the product.
+
+Started at a graph run's start time (its jumping reference's), it is that run to the bit: the
+controller gets the state the simulator publishes (``StateConverter.from_simulator`` reads
+``Simulator.state_into``) at the step's stamp (:func:`stamp`), events and references carry stamps as
+the nodes' messages do (tests/test_graph_flips.py compares a graph backflip's every command)."""
 from __future__ import annotations
 
 import math
@@ -13,10 +18,18 @@ from fslip_planner.plan import FlipSession, MeasuredState
 from tsc_controller import Controller, SampledReference, StateConverter
 
 
-def measured(sim: Simulator) -> MeasuredState:
+def stamp(sim: Simulator) -> float:
+    """The time of the simulator's current step as the nodes see it: its stamp, step k times the
+    step in integer nanoseconds, read back as k_ns * 1e-9 (MuJoCo's ``data.time`` sums the steps and
+    differs from it in the last bits, which is enough for the controller's torques to differ)."""
+    return sim.step_index * round(sim.timestep * 1e9) * 1e-9
+
+
+def measured(sim: Simulator, t: float | None = None) -> MeasuredState:
+    """The planner's MeasuredState as sim_node's ContactEvent carries it (``t``: its stamp)."""
     p, (w, x, y, z) = sim.pelvis_pose()
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    return MeasuredState(t=sim.time, com=sim.com_position(), com_velocity=sim.com_velocity(),
+    return MeasuredState(t=stamp(sim) if t is None else t, com=sim.com_position(), com_velocity=sim.com_velocity(),
                          pitch_momentum=sim.centroidal_pitch_momentum(), pelvis_pitch=pitch,
                          pelvis_pitch_rate=float(sim.pelvis_twist("world")[1][1]),
                          support_center=sim.support_center())
@@ -35,6 +48,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     sc = StateConverter(ctl.dyn)
     session = FlipSession(kind, **request)
     ref = session.jumping_reference()
+    start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
     session.started(start)
     ctl.set_reference(to_sampled(ref, start))
     log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], speed=[], ang_speed=[], events=[],
@@ -44,10 +58,10 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
         for ev in sim.pop_events():
             # stamped like sim_node's ContactEvent: the step at which the event is reported (its state
             # is that step's), not the onset (a lift-off is reported 20 steps after its onset)
-            t_ev = sim.time
+            t_ev = stamp(sim)
             log["events"].append((int(ev.kind), t_ev))
             ctl.on_contact_event(int(ev.kind), t_ev)
-            st = measured(sim)
+            st = measured(sim, t_ev)
             r = None
             if int(ev.kind) == 0:
                 r = session.flight_reference(st)
@@ -59,7 +73,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 log["references"].append((t_ev, r))
                 ctl.set_reference(to_sampled(r, t_ev))
         q, v = sc.from_simulator(sim)
-        u, info = ctl.compute(q, v, sim.time)
+        u, info = ctl.compute(q, v, stamp(sim))
         sim.step(u)
         if sim.step_index % every == 0:
             p, (qw, qx, qy, qz) = sim.pelvis_pose()

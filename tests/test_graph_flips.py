@@ -7,7 +7,9 @@ process, lockstep), judged from the recorded bag: `scripts/flip run`.
   judged from /odom in the bag, the pelvis turns one whole somersault in the air, backwards resp.
   forwards, and touches down upright.  Whether it then stands is not asserted here: the landings
   stand up in part of the runs only (start times differ with the request's wall timing; see the
-  README's results); tests/test_offline_flip.py checks a landing of each deterministically."""
+  README's results); tests/test_offline_flip.py checks a landing of each deterministically.
+* The offline harness (tests/offline_flip.py) started at the backflip's start time reproduces it to
+  the bit: every recorded command and pelvis position, and the contact events."""
 import json
 import subprocess
 import sys
@@ -59,6 +61,48 @@ def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path
     pitch = np.degrees(pitch_unwrapped(od["quat"]))
     k = np.searchsorted(od["t"], td[0])
     assert -375.0 < pitch[k] - pitch[0] < -345.0                   # one backward turn, upright at touch-down
+    assert_offline_reproduces(out, od)
+
+
+def assert_offline_reproduces(out, od):
+    """tests/offline_flip.py run from the graph run's start time (its jumping reference's) gives the
+    same run to the bit: every recorded /motor_command and /odom position equal, the same events."""
+    import offline_flip as of
+    from cassie_flip_sim.model import export_mjcf
+    from cassie_flip_sim.simulator import Simulator
+    from flip_tools.bag import load_bag
+    from tsc_controller import Controller
+    run = json.loads((out / "run.json").read_text())
+    sp, req = run["sim_params"], run["request"]
+    bag = load_bag(out / "bag", ["/fslip/reference", "/motor_command", "/contact_events"]).arrays
+    start = bag["/fslip/reference"]["refs"][0]["start_time"]
+    cmd = {int(k): e for k, e in zip(bag["/motor_command"]["step"], bag["/motor_command"]["effort"])}
+    pos = {int(round(t / 0.0005)): p for t, p in zip(od["t"], od["pos"])}
+    sim = Simulator(motor_speed_scale=sp["motor_speed_scale"], flywheel_torque=sp["flywheel_torque"])
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=sp["motor_speed_scale"],
+                     flywheel_torque=sp["flywheel_torque"])
+    seen = {"u": 0, "pos": 0}
+    compute = ctl.compute
+
+    def checked(q, v, t, details=True):
+        k = sim.step_index
+        if k in pos:
+            np.testing.assert_array_equal(sim.pelvis_pose()[0], pos[k], err_msg=f"pelvis at step {k}")
+            seen["pos"] += 1
+        u, info = compute(q, v, t, details)
+        if k in cmd:
+            np.testing.assert_array_equal(u, cmd[k], err_msg=f"command of step {k}")
+            seen["u"] += 1
+        return u, info
+    ctl.compute = checked
+    r = of.run(req["kind"], seconds=max(pos) * 0.0005, start=start, sim=sim, controller=ctl, every=100,
+               apex_height=req["apex_height"] or None, forward_distance=req["forward_distance"],
+               platform_height=req["platform_height"], motor_speed_scale=sp["motor_speed_scale"],
+               flywheel_torque=sp["flywheel_torque"])
+    ev = bag["/contact_events"]
+    graph_events = [(int(e), round(float(t), 4)) for e, t in zip(ev["event"], ev["t"]) if e in (0, 1)]
+    assert [(k, round(t, 4)) for k, t in r["events"]] == graph_events
+    assert seen["u"] > 0.99 * len(cmd) and seen["pos"] > 0.99 * len(pos), seen
 
 
 def test_frontflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path):

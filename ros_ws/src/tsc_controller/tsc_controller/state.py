@@ -115,11 +115,13 @@ class StateConverter:
         return self._map.convert_cdr(js_buf, odom_buf)
 
     def from_simulator(self, sim):
-        """(q, v) from a ``cassie_flip_sim.simulator.Simulator`` through the contract arrays."""
-        p, quat_wxyz = sim.pelvis_pose()
-        lin, ang = sim.pelvis_twist("local")
-        return self.from_ros(sim.joint_names, sim.joint_positions(), sim.joint_velocities(),
-                             p, np.r_[quat_wxyz[1:], quat_wxyz[0]], lin, ang)
+        """(q, v) from a ``cassie_flip_sim.simulator.Simulator`` through the contract arrays, the very
+        numbers ``sim_node`` publishes (``Simulator.state_into``, which fills its messages): a run without
+        ROS then gives the controller the state the node would read, to the bit."""
+        n = len(sim.joint_names)
+        pos, vel, eff, pose, twist = np.empty(n), np.empty(n), np.empty(n), np.empty(7), np.empty(6)
+        sim.state_into(pos, vel, eff, pose, twist)
+        return self.from_ros(sim.joint_names, pos, vel, pose[:3], pose[3:], twist[:3], twist[3:])
 
 
 def state_from_ros(converter: StateConverter, js, odom):
