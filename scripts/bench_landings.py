@@ -63,6 +63,13 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     return out
 
 
+def start_cell(start: float) -> str:
+    """A start time with two decimals, or as many as it has up to the step's four (a graph run's start,
+    e.g. 1.5555 s, to re-run it offline)."""
+    text = f"{start:.4f}".rstrip("0")
+    return text + "0" * max(0, 2 - len(text.split(".")[1]))
+
+
 def at_rest(t, speed, ang_speed, criteria=LANDING_CRITERIA) -> bool:
     """`flip run`'s at-rest check (flip_tools.summary) on a run's samples: over the last
     ``rest_window_s`` the pelvis' speed and angular speed stay below their limits."""
@@ -107,7 +114,7 @@ def main() -> int:
     print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731
     for r in rows:
-        print(f"| {r['kind']} | {r['start']:.2f} | {'yes' if r['landed'] else 'no'} | "
+        print(f"| {r['kind']} | {start_cell(r['start'])} | {'yes' if r['landed'] else 'no'} | "
               f"{'yes' if r['at_rest'] else 'no'} | {f(r['fell_at'], 3)} | "
               f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} |")
     for k in a.kinds:

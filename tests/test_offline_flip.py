@@ -160,3 +160,4 @@ def test_bench_landings_at_rest_is_the_verdicts_check():
     spin[-1] = 0.6                                   # angular speed 0.6 rad/s at the end (limit 0.5)
     assert not bl.at_rest(t, still, spin)
     assert bl.LANDING_CRITERIA["rest_window_s"] == 0.5
+    assert [bl.start_cell(x) for x in (0.5, 0.98, 1.555, 1.5555, 3.0)] == ["0.50", "0.98", "1.555", "1.5555", "3.00"]
