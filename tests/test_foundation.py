@@ -312,6 +312,7 @@ def test_summary_frontflip_landed(tmp_path):
     assert s["peak_flywheel_rpm"] > 0 and s["peak_flywheel_torque_nm"] > 0
     assert s["peak_motor_torque_nm"]["right_foot"] == pytest.approx(9.0)
     assert s["planner"]["solve_time_s"] == [0.42]
+    assert s["planner"]["start_time_s"] is None                          # a flight reference only, no jump
     assert s["checks"]["only_feet_touch_ground"]["ok"] is True       # no BODY_CONTACT event
     assert s["checks"]["touchdown_on_landing_ground"]["ok"] is True   # the feet came down at z = 0.02
     assert s["tsc_tick_us"]["n"] == s["motor_commands"] and "tsc_tick_us_note" not in s

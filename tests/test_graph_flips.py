@@ -65,8 +65,9 @@ def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path
 
 
 def assert_offline_reproduces(out, od):
-    """tests/offline_flip.py run from the graph run's start time (its jumping reference's) gives the
-    same run to the bit: every recorded /motor_command and /odom position equal, the same events."""
+    """tests/offline_flip.py run from the graph run's start time (summary.json's planner start_time_s,
+    its jumping reference's) gives the same run to the bit: every recorded /motor_command and /odom
+    position equal, the same events."""
     import offline_flip as of
     from cassie_flip_sim.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
@@ -75,7 +76,8 @@ def assert_offline_reproduces(out, od):
     run = json.loads((out / "run.json").read_text())
     sp, req = run["sim_params"], run["request"]
     bag = load_bag(out / "bag", ["/fslip/reference", "/motor_command", "/contact_events"]).arrays
-    start = bag["/fslip/reference"]["refs"][0]["start_time"]
+    start = json.loads((out / "summary.json").read_text())["planner"]["start_time_s"]
+    assert start == round(bag["/fslip/reference"]["refs"][0]["start_time"], 4)
     cmd = {int(k): e for k, e in zip(bag["/motor_command"]["step"], bag["/motor_command"]["effort"])}
     pos = {int(round(t / 0.0005)): p for t, p in zip(od["t"], od["pos"])}
     sim = Simulator(motor_speed_scale=sp["motor_speed_scale"], flywheel_torque=sp["flywheel_torque"])

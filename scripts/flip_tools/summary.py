@@ -57,6 +57,7 @@ LANDING_CRITERIA = {
 }
 EXPECTED_ROTATION_DEG = {"frontflip": 360.0, "backflip": -360.0, "hop": 0.0}
 RPM_PER_RADPS = 60.0 / (2.0 * math.pi)
+JUMPING = 1  # ContactEvent.DOMAIN_JUMPING (FlipReference.domain)
 FLIGHT = 2  # ContactEvent.DOMAIN_FLIGHT
 LIFT_OFF, TOUCH_DOWN = 0, 1
 
@@ -258,6 +259,9 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
                         "iterations": r["iterations"]} for r in refs],
             "max_solve_time_s": _f(max(r["solve_time"] for r in refs), 4),
             "planned_flight_time_s": _f(refs[0]["flight_time"]),
+            # the jumping reference's start: where tests/offline_flip.py, and so
+            # scripts/bench_landings.py --starts, re-run this flip to the bit without ROS
+            "start_time_s": next((_f(r["start_time"], 4) for r in refs if r["domain"] == JUMPING), None),
             "planned_peak_flywheel_speed_radps": _f(max(r["peak_flywheel_speed"] for r in refs), 2),
         }
     s["verdict_notes"] = notes
