@@ -2,7 +2,7 @@
 """Benchmark of one TSC tick (dynamics + outputs + QP) in closed loop with the MuJoCo simulator,
 and a comparison of QP solvers on the QPs of that run.
 
-    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp] [--backend native|python]
+    .venv/bin/python scripts/bench_tsc.py [--seconds 3] [--solver daqp] [--backend native|python] [--python-targets]
 
 Numbers are wall time of this process on this machine.  The closed-loop rows interleave a MuJoCo
 step between ticks (cold caches); the replay rows feed the recorded states back to back to a fresh
@@ -100,7 +100,7 @@ def between_ticks(states, a):
     print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|")
     try:
         for name, before in cases:
-            ctl = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
+            ctl = controller(a)
             times = []
             for q, v, t in states:
                 if before is not None:
@@ -116,6 +116,11 @@ def between_ticks(states, a):
         os.sched_setaffinity(0, cpus)
 
 
+def controller(a):
+    """A fresh controller of the benchmark's settings."""
+    return Controller(export_mjcf(), solver=a.solver, backend=a.backend, compiled_targets=not a.python_targets)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated standing time (2 kHz ticks)")
@@ -124,10 +129,13 @@ def main():
     ap.add_argument("--replays", type=int, default=3, help="replays of the recorded states, back to back")
     ap.add_argument("--backend", default="native", choices=BACKENDS,
                     help="per-tick terms: compiled (tsc_controller._native) or the numpy reference")
+    ap.add_argument("--python-targets", action="store_true",
+                    help="native backend: the ground domains' targets in Python (ControllerConfig.compiled_targets"
+                         " off), to compare")
     a = ap.parse_args()
 
     sim = Simulator()
-    ctl = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
+    ctl = controller(a)
     sc = StateConverter(ctl.dyn)
     qps = []
     orig = T.SOLVERS[a.solver].solve
@@ -154,7 +162,8 @@ def main():
             status[info["qp_status"]] = status.get(info["qp_status"], 0) + 1
     T.SOLVERS[a.solver].solve = orig
 
-    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver}, backend {ctl.dyn.backend} "
+    print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver}, backend {ctl.dyn.backend}, "
+          f"targets {'compiled' if ctl._ground is not None else 'Python'} "
           f"(BLAS threads = {os.environ.get('OPENBLAS_NUM_THREADS')})")
     stages(parts, tick, a.backend)
     row("(state conversion, not in total)", conv)
@@ -164,7 +173,7 @@ def main():
     # of its own, as tsc_node: no simulator step between ticks to evict the caches)
     best = None
     for r in range(a.replays):
-        ctl2 = Controller(export_mjcf(), solver=a.solver, backend=a.backend)
+        ctl2 = controller(a)
         rep, rep_tick, rep_parts = [], [], {}
         for k, (q, v, t) in enumerate(states):
             t0 = time.perf_counter()

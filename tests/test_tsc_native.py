@@ -256,3 +256,61 @@ def test_output_subclass_without_compiled_form_falls_back(mjcf):
     task = _Task(outs, [o.evaluate(dyn) for o in outs])
     task.compile(dyn)
     assert task.native is not None
+
+
+class _Twin:
+    """Two controllers fed the same events, references and states (tests/offline_flip.py's calls);
+    every tick's torques of the second must equal the first's to the bit.  Counts the situations the
+    second (the Python targets) went through."""
+
+    def __init__(self, a, b):
+        self.a, self.b = a, b
+        self.seen = set()
+        self.ticks = 0
+
+    def __getattr__(self, name):
+        return getattr(self.a, name)
+
+    def set_reference(self, ref):
+        self.a.set_reference(ref)
+        self.b.set_reference(ref)
+
+    def on_contact_event(self, *args):
+        self.a.on_contact_event(*args)
+        self.b.on_contact_event(*args)
+
+    def compute(self, q, v, t, details=True):
+        ua, info = self.a.compute(q, v, t, details)
+        ub, _ = self.b.compute(q, v, t, details)
+        assert ua.tobytes() == ub.tobytes(), f"t={t}: compiled and Python targets differ by {ua - ub}"
+        self.ticks += 1
+        b = self.b
+        self.seen.add(("domain", int(b.domain)))
+        if not all(b.feet_contact):
+            self.seen.add("one foot or none")
+        if b._stand is not None and "tL" in b._stand:
+            self.seen.add("leg catch re-anchored")
+        return ua, info
+
+
+@pytest.mark.parametrize("flip", ["C", "D"])
+def test_compiled_targets_equal_python_targets(flip):
+    """ControllerConfig.compiled_targets (the ground domains' targets in C++, _native.GroundTargets)
+    against its Python reference over a whole offline flip of the somersault robot: the same torques to
+    the bit at every tick, through every domain, with the landing's leg catch re-anchored on the sink
+    rate (flip C's 3.8 m/s touch-down) and with feet off the ground (flip D's rebounds)."""
+    import offline_flip as of
+    from cassie_flip_sim.model import Scenario
+    scenario, request = {
+        "C": (Scenario.platform(0.5), dict(forward_distance=0.6, platform_height=0.5, apex_height=1.2)),
+        "D": (Scenario.raised_landing(0.1), dict(forward_distance=0.6, apex_height=1.2)),
+    }[flip]
+    robot = dict(motor_speed_scale=3, flywheel_torque=260)
+    sim = Simulator(scenario=scenario, **robot)
+    mj = export_mjcf(sim.flywheel)
+    twin = _Twin(Controller(mj, **robot), Controller(mj, compiled_targets=False, **robot))
+    assert twin.a._ground is not None and twin.b._ground is None
+    r = of.run("frontflip", seconds=5.0, start=0.5, sim=sim, controller=twin, **robot, **request)
+    assert r["fell"] is None and twin.ticks == 10001
+    assert {("domain", d) for d in range(4)} <= twin.seen
+    assert ("leg catch re-anchored" if flip == "C" else "one foot or none") in twin.seen

@@ -8,11 +8,13 @@ import sys
 from glob import glob
 from pathlib import Path
 
-from pybind11.setup_helpers import ParallelCompile, Pybind11Extension, build_ext
+from pybind11.setup_helpers import ParallelCompile, Pybind11Extension, build_ext, naive_recompile
 from setuptools import find_packages, setup
 
 package_name = "tsc_controller"
-ParallelCompile("TSC_NATIVE_BUILD_JOBS", default=2).install()   # tick.cpp (Pinocchio) beside the small files
+# tick.cpp (Pinocchio) beside the small files; `python setup.py build_ext --inplace` here rebuilds only
+# the files changed since its last build (its build/ tree; pip's builds start afresh)
+ParallelCompile("TSC_NATIVE_BUILD_JOBS", default=2, needs_recompile=naive_recompile).install()
 
 
 def cmeel_prefix() -> Path:
@@ -42,7 +44,8 @@ def native_extension():
     return Pybind11Extension(
         f"{package_name}._native",
         ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp",
-         "tsc_controller/native/limits.cpp", "tsc_controller/native/state.cpp"],
+         "tsc_controller/native/limits.cpp", "tsc_controller/native/state.cpp",
+         "tsc_controller/native/ground.cpp"],
         include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3")],
         define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                        ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],

@@ -76,6 +76,7 @@ namespace
 void bind_task(py::module_ & mod);
 void bind_limits(py::module_ & mod);
 void bind_state(py::module_ & mod);
+void bind_ground(py::module_ & mod);
 
 /// One tick's rigid-body terms, point table, constraint rows and constrained dynamics.
 class Tick : public TickTerms
@@ -360,6 +361,7 @@ PYBIND11_MODULE(_native, mod)
   bind_task(mod);
   bind_limits(mod);
   bind_state(mod);
+  bind_ground(mod);
   py::class_<Tick, TickTerms>(mod, "Tick")
     .def(py::init<py::object, py::object, py::dict>(), py::arg("model"), py::arg("data"), py::arg("tables"))
     .def("update", &Tick::update, py::arg("q"), py::arg("v"))
