@@ -62,9 +62,14 @@ def one_run(kind: str, out: Path, extra: list[str], zero_tick_s: float = 0.0) ->
             extra = extra[:i] + extra[i + 2:]
     else:
         cmd = ["run", kind]
-    rc = subprocess.run([sys.executable, str(FLIP), *cmd, "--out", str(out), *extra],
-                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
+    argv = [sys.executable, str(FLIP), *cmd, "--out", str(out), *extra]
+    log = out.parent / f"{out.name}.flip.log"
+    with open(log, "w") as f:
+        rc = subprocess.run(argv, stdout=f, stderr=subprocess.STDOUT).returncode
     total = time.perf_counter() - t0
+    if not (out / "summary.json").is_file():
+        tail = "".join(log.read_text(errors="replace").splitlines(keepends=True)[-15:])
+        raise SystemExit(f"bench_graph: {shlex.join(argv[1:])} exited {rc} without a summary; its last lines:\n{tail}")
     s = json.loads((out / "summary.json").read_text())
     run = json.loads((out / "run.json").read_text())
     tick = s.get("tsc_tick_us") or {}
