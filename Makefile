@@ -39,7 +39,7 @@ $(VENV)/.stamp-msgs: $(VENV)/.stamp-deps $(MSG_SRCS)
 
 # tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~2 min) here too, and
 # cassie_flip_sim its compiled step (on the mujoco wheel's headers and library)
-$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp)
+$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.h)
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
 	touch $@
 

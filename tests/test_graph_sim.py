@@ -38,20 +38,25 @@ def test_flip_sim_records_the_contract_topics_and_is_deterministic(tmp_path):
     assert a["/odom"]["pos"][-1, 2] < a["/odom"]["pos"][0, 2]          # sinking under zero torque
 
 
-@pytest.mark.parametrize("sim_io", [True, False], ids=["rcl", "python"])
-def test_lockstep_simulator_ignores_bad_commands_and_resends(ros_graph, sim_io):
+@pytest.mark.parametrize("sim_io, compiled", [(True, True), (True, False), (False, False)],
+                         ids=["rcl-compiled-loop", "rcl-python-loop", "python"])
+def test_lockstep_simulator_ignores_bad_commands_and_resends(ros_graph, sim_io, compiled):
     """sim_node in lockstep against a controller that answers one step with 2 torques, then with
     bytes that are no MotorCommand, then with an answer to an earlier step: each is ignored (the
     wrong size and the garbage with a log line) and the state sent again, the third re-send's answer
-    is taken and the run ends after all its steps (rcl's C API and rclpy alike)."""
+    is taken and the run ends after all its steps (rcl's C API and rclpy alike; with rcl, the
+    compiled loop hands the wrong size and the time-outs back to the Python loop, which answers them
+    as its own)."""
     from ros_harness import python_node_cmd, NODES_DIR
     from flip_tools.launcher import ros_args
     ros_graph.start("controller", python_node_cmd(NODES_DIR / "awkward_controller_node.py"), node_name="tsc_node")
     ros_graph.start("sim", [str(Path(sys.executable).parent / "sim_node")]
-                    + ros_args(params={"duration": 0.005, "rcl_io": sim_io}), node_name="sim_node")
+                    + ros_args(params={"duration": 0.005, "rcl_io": sim_io, "compiled_loop": compiled}),
+                    node_name="sim_node")
     r = ros_graph.launcher.wait_exit("sim", 120)
     log = (ros_graph.log_dir / "sim.log").read_text()
     assert r == 0, log
+    assert ("; compiled loop;" in log) == compiled, log
     assert "/motor_command for step 3 has 2 torques, not 11: ignored" in log
     assert "1 /motor_command messages that are not MotorCommand CDR ignored" in log
     m = re.search(r"done: (\d+) steps.*state re-sent (\d+) times", log)

@@ -193,13 +193,15 @@ def _wait_sim_running(p, out):
         time.sleep(0.02)
 
 
-def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl"):
+def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl", extra=(), ok=(0,),
+          topics=("/clock", "/joint_states", "/odom", "/motor_command")):
     """`flip stand`; with ``stall_recorder_s``, the recorder is stopped (SIGSTOP) that long once the
-    simulator runs; ``io``: its --io."""
+    simulator runs; ``io``: its --io; ``extra``: more of its options; ``ok``: its exit codes that
+    pass."""
     from flip_tools.bag import load_bag
     out = tmp_path / name
     p = subprocess.Popen([sys.executable, str(FLIP), "stand", "--duration", str(duration), "--out", str(out),
-                          "--io", io],
+                          "--io", io, *extra],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if stall_recorder_s:
         _wait_sim_running(p, out)
@@ -208,13 +210,14 @@ def stand(tmp_path, name, duration=1.0, stall_recorder_s=0.0, io="rcl"):
         time.sleep(stall_recorder_s)
         os.kill(pid, signal.SIGCONT)
     output = p.communicate(timeout=300)[0]
-    assert p.returncode == 0, output
-    return load_bag(out / "bag", ["/clock", "/joint_states", "/odom", "/motor_command"]), out
+    assert p.returncode in ok, output
+    return load_bag(out / "bag", list(topics)), out
 
 
 def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
-    """(The second run's simulator and controller use rclpy for their per-step messages, the first
-    run's rcl's C API: the same states to the bit.)"""
+    """(The second run's simulator and controller use rclpy for their per-step messages, and so the
+    simulator's Python loop, the first run's rcl's C API and the simulator's compiled loop: the same
+    states to the bit.)"""
     (a, out_a), (b, _) = stand(tmp_path, "a"), stand(tmp_path, "b", stall_recorder_s=0.5, io="python")
     n = 2000                                                            # 1 s of 0.5 ms steps
     for bag in (a, b):
@@ -249,7 +252,7 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
     assert loop["planner holds"] == 0 and loop["rest"] >= 0                # standing: nothing to plan
     # both nodes pinned to one CPU as SCHED_BATCH threads (flip's default in lockstep), as the kernel
     # reports it to each
-    for role, line in (("sim", "running: mode=lockstep"), ("tsc", "controller built")):
+    for role, line in (("sim", "running: mode=lockstep.*; compiled loop"), ("tsc", "controller built")):
         text = (out_a / "logs" / f"{role}.log").read_text()
         assert re.search(line + r".*; cpus \[\d+\], SCHED_BATCH\n", text), (role, text[-2000:])
     for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang"))):
@@ -257,6 +260,40 @@ def test_lockstep_stand_records_every_step_and_is_deterministic(tmp_path):
         _, ib = np.unique(b[topic]["t"], return_index=True)
         for k in keys:                                                  # the controller in the loop, bit for bit
             np.testing.assert_array_equal(a[topic][k][ia], b[topic][k][ib])
+
+
+def test_compiled_sim_loop_records_what_the_python_loop_records(tmp_path):
+    """`flip stand` with the simulator's compiled loop (default) and with --sim-loop python (both
+    rcl's C API), its controller answering every state at once with zero torques
+    (stand_ins/zero_tick_tsc_node.py): the robot falls, so the compiled loop hands back to Python at
+    lift-offs, touch-downs and body contacts (its C++ contact detector and body-contact test) as well
+    as every 200 steps.  Both record the same run to the bit: every step's /odom, /joint_states and
+    /motor_command, /clock, and the contact events (steps, kinds, the states they carry)."""
+    zero_tick = f"tsc={sys.executable} {FLIP.parent / 'stand_ins' / 'zero_tick_tsc_node.py'}"
+    topics = ("/clock", "/joint_states", "/odom", "/motor_command", "/contact_events")
+    n = 3000
+    runs = {loop: stand(tmp_path, loop, duration=n * 0.0005, ok=(0, 1), topics=topics,
+                        extra=["--exe", zero_tick, "--sim-loop", loop, "--cpu-dma-latency", "off"])
+            for loop in ("compiled", "python")}
+    (a, out_a), (b, out_b) = runs["compiled"], runs["python"]
+    assert "; compiled loop;" in (out_a / "logs" / "sim.log").read_text()
+    assert "; compiled loop;" not in (out_b / "logs" / "sim.log").read_text()
+    for topic, keys in (("/joint_states", ("pos", "vel", "eff")), ("/odom", ("pos", "quat", "lin", "ang")),
+                        ("/motor_command", ("step", "effort"))):
+        ta, ia = np.unique(a[topic]["t"], return_index=True)
+        tb, ib = np.unique(b[topic]["t"], return_index=True)
+        if topic != "/motor_command":        # (the recorder may match the controller late)
+            assert np.array_equal(np.round(ta / 0.0005), np.arange(n)) and np.array_equal(tb, ta), topic
+        common, ja, jb = np.intersect1d(ta, tb, return_indices=True)
+        assert len(common) > 0.9 * n, topic
+        for k in keys:
+            np.testing.assert_array_equal(a[topic][k][ia[ja]], b[topic][k][ib[jb]], err_msg=f"{topic} {k}")
+    np.testing.assert_array_equal(a["/clock"]["sim_t"], b["/clock"]["sim_t"])
+    ea, eb = a["/contact_events"], b["/contact_events"]
+    assert {0, 1, 2} <= set(ea["event"]), ea["event"]    # lift-off, touch-down, body contact
+    for k in ("t", "step", "event", "domain", "frame_id", "pelvis_pos", "pelvis_quat", "com_pos", "com_vel",
+              "H_pitch", "left_normal_force", "right_normal_force", "support_center"):
+        assert np.array_equal(ea[k], eb[k]), k
 
 
 def test_bench_graph_names_the_steps_a_bag_misses(tmp_path):

@@ -79,3 +79,46 @@ def test_native_step_without_clipping_applies_the_torques_as_given():
         a.step(u)
         b.step(u)
         assert np.array_equal(a.last_command, u) and np.array_equal(a.data.qvel, b.data.qvel), k
+
+
+def test_compiled_loops_detector_follows_the_contact_detector():
+    """_native.Detector (the contact detector sim_node's compiled loop runs, native/stepper_api.h)
+    against contacts.ContactDetector on the forces of a robot pushed about until it falls: the same
+    events (lift-offs and touch-downs, their onset steps and times, forces) and the same state after
+    every step; the state handed back and forth (ContactDetector.state / set_state), as between the
+    loop's calls, changes nothing."""
+    from cassie_flip_sim import _native
+    from cassie_flip_sim.contacts import ContactDetector
+    sim = Simulator(motor_speed_scale=3.0, flywheel_torque=260.0)
+    ref = ContactDetector(True)
+    lim = ref.state()[5:]
+    cpp = _native.Detector(*lim)
+    rng = np.random.default_rng(0)
+    kinds = []
+    for k in range(3000):
+        u = rng.normal(0.0, 60.0, 11) if k % 400 < 150 else np.zeros(11)
+        t = sim.data.time
+        sim.step(u)
+        want = ref.update(k, t, *sim.forces)
+        got = cpp.update(k, t, *sim.forces)
+        assert (got is None) == (want is None), k
+        if want is not None:
+            assert got == (int(want.kind), want.step, want.time, want.detected_step, want.left_force,
+                           want.right_force), k
+            kinds.append(want.kind)
+        state = (cpp.in_contact, cpp.zero_run, cpp.onset_step, cpp.onset_time, cpp.flight_steps)
+        assert state + lim == ref.state(), k
+        if k % 7 == 0:                                   # a hand-over: Python's state back and forth
+            ref.set_state(ref.state())
+            assert ref.state() == state + lim
+    assert len(kinds) >= 4 and set(kinds) == {0, 1}      # lift-offs and touch-downs
+
+
+def test_native_loop_parts_only_for_the_native_step_and_the_contact_detector():
+    from cassie_flip_sim.contacts import ContactDetector
+
+    class Other(ContactDetector):
+        pass
+    assert Simulator().native_loop_parts() is not None
+    assert Simulator(backend="python").native_loop_parts() is None
+    assert Simulator(detector=Other()).native_loop_parts() is None

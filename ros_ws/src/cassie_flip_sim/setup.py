@@ -3,7 +3,8 @@
 The simulator's per-step work (cassie_flip_sim._native, native/step.cpp) is a pybind11 extension on
 the MuJoCo C API: the headers and library of the mujoco wheel.  sim_node's per-step messages
 (cassie_flip_sim._rcl_io, native/rcl_io.cpp) are one on rcl's C API: the headers and libraries of
-the ROS wheels in the venv (or of the ROS install on AMENT_PREFIX_PATH)."""
+the ROS wheels in the venv (or of the ROS install on AMENT_PREFIX_PATH); its compiled stepping loop
+calls the first through the C table of native/stepper_api.h (neither links the other's library)."""
 import importlib.util
 import os
 import sys
@@ -34,6 +35,7 @@ def native_extension():
     return Pybind11Extension(
         f"{package_name}._native",
         ["cassie_flip_sim/native/step.cpp"],
+        depends=["cassie_flip_sim/native/stepper_api.h"],
         include_dirs=[str(d / "include")],
         library_dirs=[str(d)],
         # the library the mujoco module itself loads (same soname, one copy in the process)
@@ -61,6 +63,7 @@ def rcl_extension():
     return Pybind11Extension(
         f"{package_name}._rcl_io",
         ["cassie_flip_sim/native/rcl_io.cpp"],
+        depends=["cassie_flip_sim/native/stepper_api.h"],
         include_dirs=inc,
         library_dirs=[str(p / "lib")],
         libraries=["rcl", "rmw", "rcutils"],

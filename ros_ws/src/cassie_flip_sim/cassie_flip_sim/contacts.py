@@ -84,6 +84,19 @@ class ContactDetector:
         self._onset: Optional[Tuple[int, float]] = None
         self._flight_steps = 0 if in_contact else self.min_flight_steps
 
+    def state(self) -> tuple:
+        """(in_contact, zero_run, onset step (-1: none), onset time, flight steps, lift_off_force,
+        touch_down_force, lift_off_steps, min_flight_steps): what the C++ copy of this detector in
+        sim_node's compiled loop carries on from (native/stepper_api.h); ``set_state`` takes it back."""
+        step, time = self._onset if self._onset is not None else (-1, 0.0)
+        return (self.in_contact, self._zero_run, step, time, self._flight_steps, self.lift_off_force,
+                self.touch_down_force, self.lift_off_steps, self.min_flight_steps)
+
+    def set_state(self, state: tuple) -> None:
+        (self.in_contact, self._zero_run, step, time, self._flight_steps, self.lift_off_force,
+         self.touch_down_force, self.lift_off_steps, self.min_flight_steps) = state
+        self._onset = (step, time) if step >= 0 else None
+
     @property
     def phase(self) -> str:
         return "stance" if self.in_contact else "flight"

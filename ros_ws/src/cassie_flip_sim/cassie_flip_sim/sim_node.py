@@ -12,7 +12,12 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
 The per-step messages are published from preallocated serialized templates and the commands read
 from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``); in lockstep, by default
 through rcl's C API (``_rcl_io``: publish, and ``CommandWait`` for the command), ``rcl_io:=false``
-through rclpy's Python.
+through rclpy's Python.  There the routine steps run back to back in C++ (``_rcl_io.SimLoop``,
+native/rcl_io.cpp: publish, wait, MuJoCo step and contact detector, the GIL released), which hands
+back to this loop whatever is not routine: a step with pre-step work (1.), a wait that got no
+command (a re-send, a reference, a wrong size, an interrupt), the run's end, and every 200 steps
+(services, and the stop's signal handler, which only Python runs: a stop ends the run at the next
+such return, at a step's end); ``compiled_loop:=false`` keeps every step in Python (the same messages).
 Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
 counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
 (zero torques, no waiting).
@@ -62,6 +67,8 @@ CLOCK_RATE_HZ = 200.0
 #: once the subscribers have matched the simulator's publishers, the wall time left for their side
 #: of the match before the first step (a best-effort reader drops what comes before it matches)
 MATCH_SETTLE_S = 0.3
+#: steps between the loop's turns of the services' executor (and, in the compiled loop, its returns)
+SPIN_EVERY = 200
 
 
 def make_scenario(name, platform_height, ground_offset):
@@ -105,6 +112,8 @@ class SimNode:
         # lockstep: publish the state and wait for the command through rcl's C API (_rcl_io) instead
         # of rclpy's Python (the same messages; false: the Python path, e.g. to compare the two)
         self.rcl_io = bool(_declare(n, 'rcl_io', True))
+        # lockstep with rcl_io: the routine steps in C++ (_rcl_io.SimLoop; module doc); false: in Python
+        self.compiled_loop = bool(_declare(n, 'compiled_loop', True))
         if self.mode not in ('lockstep', 'realtime'):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
         if self.controller not in ('tsc', 'none'):
@@ -147,6 +156,7 @@ class SimNode:
         self.reset_requested = False
         self.body_contact = False
         self.command_wait = None        # _rcl_io.CommandWait of a lockstep run (rcl_io)
+        self.sim_loop = None            # _rcl_io.SimLoop of a lockstep run (rcl_io, compiled_loop)
         self.malformed_commands = 0     # /motor_command messages that were no MotorCommand (Python path)
         self._u_in = np.zeros(11)       # the command it reads
         self._ptr = {name: pub.handle.pointer for name, pub in
@@ -318,9 +328,20 @@ class SimNode:
             self.command_wait = _rcl_io.CommandWait(
                 self.node.context.handle.pointer, self.subs.subscription('/motor_command').handle.pointer,
                 self.subs.subscription('/fslip/reference').handle.pointer, self.subs.sigint_guard.handle.pointer)
+            parts = self.sim.native_loop_parts() if self.compiled_loop else None
+            if parts is not None:
+                js, od = self.msg_js.fields, self.msg_odom.fields
+                self.sim_loop = _rcl_io.SimLoop(
+                    self.command_wait, parts[0], self._ptr['odom'], self._ptr['js'], self._ptr['clock'],
+                    self.msg_odom.buf, self.msg_js.buf, self.msg_clock.buf, js['position'], js['velocity'],
+                    js['effort'], od['pose'], od['twist'], self.command, self._u_in, parts[1], self.dt_ns,
+                    self.clock_every, int(COMMAND_RESEND_S * 1e9), SPIN_EVERY)
+            elif self.compiled_loop:
+                log.warn('compiled loop unavailable for this simulator: the loop steps in Python')
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
-                 f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m; {scheduling_note()}')
+                 f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m'
+                 f'{"; compiled loop" if self.sim_loop is not None else ""}; {scheduling_note()}')
         wall0 = time.monotonic()
         cpu0 = (time.process_time(), time.thread_time())
         k = 0
@@ -344,12 +365,25 @@ class SimNode:
                 if touching and not self.body_contact:
                     self._publish_body_contact(k, touching)
                 self.body_contact = bool(touching)
-                c0 = clock()
-                self._publish_state(k)
-                self.last_state_k = k
-                c1 = clock()
-                spent['publish state'] += c1 - c0
-                if self.controller == 'tsc':
+                if self.sim_loop is not None:
+                    k, handed_over = self._compiled_steps(k, n_steps, spent)
+                    if handed_over is None:          # steps taken: step k's checks are this loop's
+                        if k % SPIN_EVERY == 0:
+                            self.executor.spin_once(timeout_sec=0.0)
+                        continue
+                    c1 = clock()                     # step k's state sent, its command awaited
+                    cmd = self._wait_command_rcl(k, *handed_over)
+                    spent['wait for command'] += clock() - c1
+                    if cmd is None:
+                        break
+                    self.command[:] = cmd
+                else:
+                    c0 = clock()
+                    self._publish_state(k)
+                    self.last_state_k = k
+                    c1 = clock()
+                    spent['publish state'] += c1 - c0
+                if self.controller == 'tsc' and self.sim_loop is None:
                     if self.mode == 'lockstep':
                         cmd = self._wait_command(k)
                         spent['wait for command'] += clock() - c1
@@ -382,7 +416,7 @@ class SimNode:
                         time.sleep(lag)
                     elif lag < -self.dt:
                         late += 1       # more than one step behind the wall clock
-                if k % 200 == 0:
+                if k % SPIN_EVERY == 0:
                     self.executor.spin_once(timeout_sec=0.0)
         finally:
             wall = time.monotonic() - wall0
@@ -435,15 +469,36 @@ class SimNode:
         self.executor.spin_once(timeout_sec=0.0)
         return warned
 
-    def _wait_command_rcl(self, k):
+    def _compiled_steps(self, k, n_steps, spent):
+        """Steps from k (its pre-step checks done) in the compiled loop until it hands back (module
+        doc), the simulator, the node's state and ``spent`` brought up to date. Returns (the next
+        step, None), or (k, (the wait's status, when it began)) when step k's state is sent and its
+        command is to be awaited further here (``_wait_command_rcl``)."""
+        lp, sim = self.sim_loop, self.sim
+        lp.clock_k, lp.sim_step, lp.body_contact = self.clock_k, sim.step_index, self.body_contact
+        lp.clip, lp.detector = sim.clip_torques, sim.detector.state()
+        reason, k = lp.run(k, -1 if n_steps is None else n_steps)
+        sim.note_native_steps(lp.steps, lp.forces, lp.detector, lp.event)
+        simulate, publish, wait = lp.spent
+        spent['simulate'] += simulate
+        spent['publish state'] += publish
+        spent['wait for command'] += wait
+        self.clock_k = lp.clock_k
+        if lp.last_state_k >= 0:
+            self.last_state_k = lp.last_state_k
+        return k, ((lp.wait_status, lp.wait_t0) if reason == lp.WAIT else None)
+
+    def _wait_command_rcl(self, k, status=None, t_first=None):
         """_wait_command through _rcl_io.CommandWait: the torques of step k (a view of the command
-        buffer), or None when interrupted."""
+        buffer), or None when interrupted. ``status``, ``t_first``: of a first wait already made (by
+        the compiled loop) and when (time.monotonic) it began."""
         cw, u = self.command_wait, self._u_in
-        t_first = t_sent = time.monotonic()
+        t_first = t_sent = time.monotonic() if t_first is None else t_first
         warned = False
         while True:
-            left = COMMAND_RESEND_S - (time.monotonic() - t_sent)
-            status = cw.wait(k, max(int(left * 1e9), 0), u)
+            if status is None:
+                left = COMMAND_RESEND_S - (time.monotonic() - t_sent)
+                status = cw.wait(k, max(int(left * 1e9), 0), u)
             if status == cw.GOT:
                 return u
             if status == cw.INTERRUPTED or not self._running():
@@ -456,6 +511,7 @@ class SimNode:
             else:                                          # TIMEOUT
                 warned = self._send_again(k, time.monotonic() - t_first, warned)
                 t_sent = time.monotonic()
+            status = None
 
     def close_io(self):
         if self.command_wait is not None:

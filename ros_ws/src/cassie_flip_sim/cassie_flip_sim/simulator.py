@@ -7,7 +7,8 @@ Euler integration), records the foot normal forces that acted during that step, 
 
 ``backend="native"`` (default) runs that step, the state of ``state_into`` and the body-contact test
 in C++ on the MuJoCo C API (``cassie_flip_sim._native``, native/step.cpp); ``"python"`` is the numpy
-reference.  The two step bit for bit alike (tests/test_sim_native.py).
+reference.  The two step bit for bit alike (tests/test_sim_native.py).  sim_node's compiled loop
+steps the native one from C++ (``native_loop_parts``, then ``note_native_steps``).
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ import numpy as np
 from . import _native
 from . import model as M
 from . import robot_params as P
-from .contacts import ContactDetector, ContactEvent, FootForces
+from .contacts import ContactDetector, ContactEvent, Event, FootForces
 from .motor_limits import MotorLimits, with_flywheel_torque
 
 
@@ -109,6 +110,28 @@ class Simulator:
             self.events.append(ev)
         mujoco.mj_step1(m, d)
         self._step += 1
+
+    def native_loop_parts(self):
+        """(the compiled step's C table (a capsule, native/stepper_api.h), the applied-torque buffer
+        it writes) for a loop that steps this simulator from C++ (_rcl_io.SimLoop) as ``step`` does,
+        or None where it cannot: the numpy backend, or a detector other than ContactDetector (the loop
+        runs a C++ copy of that one)."""
+        if self._native is None or type(self.detector) is not ContactDetector:
+            return None
+        return self._native._api(), self._u_applied
+
+    def note_native_steps(self, steps: int, forces, detector_state: tuple, event) -> None:
+        """After ``steps`` steps of such a loop: what ``step`` keeps (step count, forces, applied
+        torques, the detector's state as the loop left it (ContactDetector.set_state), its event as
+        a (kind, step, time, detected_step, left_force, right_force) tuple or None)."""
+        self.detector.set_state(detector_state)
+        if steps:
+            self._step += steps
+            self.forces = forces
+            self.last_command = self._u_applied.copy()
+        if event is not None:
+            kind, step, t, detected, fl, fr = event
+            self.events.append(ContactEvent(Event(kind), step, t, detected, fl, fr))
 
     def pop_events(self) -> List[ContactEvent]:
         ev, self.events = self.events, []

@@ -6,6 +6,12 @@
 // Same arithmetic, in the same order, as the numpy reference (Simulator(backend="python")): the
 // torque clip of motor_limits.MotorLimits.clip, contacts.FootForces, Simulator's accessors.  Built
 // with -ffp-contract=off (no fused multiply-adds numpy does not make).
+//
+// Stepper._api() hands the same step, state and body-contact test to sim_node's compiled stepping
+// loop (_rcl_io.SimLoop) as a C table of function pointers (stepper_api.h); Detector is that loop's
+// copy of contacts.ContactDetector, exposed here for its test against the Python one.
+#include "stepper_api.h"
+
 #include <mujoco/mujoco.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -74,8 +80,15 @@ public:
   {
     const long n = long(dof_.size());
     if (u.size() != n) throw std::invalid_argument("Stepper.step: u of the wrong size");
-    const double * ui = u.data();
-    unsigned char * uo = out_ptr(u_out, n, "u_out");
+    double out[2];
+    step_raw(u.data(), out_ptr(u_out, n, "u_out"), clip, out);
+    return py::make_tuple(out[0], out[1]);
+  }
+
+  /// step on raw arrays (u: n motors; uo: n float64, maybe unaligned; out: the feet's forces)
+  void step_raw(const double * ui, unsigned char * uo, bool clip, double out[2])
+  {
+    const long n = long(dof_.size());
     for (long i = 0; i < n; ++i) {
       double v = ui[i];
       if (clip) {
@@ -90,7 +103,7 @@ public:
     }
     mj_step2(m_, d_);
     mjtNum f[6];
-    double out[2] = {0.0, 0.0};
+    out[0] = out[1] = 0.0;
     for (int i = 0; i < d_->ncon; ++i) {
       const mjContact & c = d_->contact[i];
       long s = side_[c.geom[0]];
@@ -100,7 +113,6 @@ public:
       out[s] += f[0];
     }
     mj_step1(m_, d_);
-    return py::make_tuple(out[0], out[1]);
   }
 
   /// The state as sim_node publishes it: per joint_names entry the position (hinge: qpos; ball: its
@@ -112,6 +124,14 @@ public:
     const long n = long(jv_.size());
     unsigned char * p = out_ptr(pos, n, "pos"), * v = out_ptr(vel, n, "vel"), * e = out_ptr(eff, n, "eff");
     unsigned char * ps = out_ptr(pose, 7, "pose"), * tw = out_ptr(twist, 6, "twist");
+    state_raw(p, v, e, ps, tw);
+  }
+
+  /// state into raw float64 fields (maybe unaligned) of the sizes state() checks
+  void state_raw(unsigned char * p, unsigned char * v, unsigned char * e, unsigned char * ps,
+                 unsigned char * tw) const
+  {
+    const long n = long(jv_.size());
     for (long i = 0; i < n; ++i) {
       put(p, i, d_->qpos[jq_[i] < 0 ? 0 : jq_[i]]);
       put(v, i, d_->qvel[jv_[i]]);
@@ -138,7 +158,32 @@ public:
     return false;
   }
 
+  /// The C table of stepper_api.h in a capsule, which holds a reference to this Stepper's Python
+  /// object (so the table stays valid while the capsule lives).
+  py::object api(py::object self)
+  {
+    api_.version = CFS_STEPPER_API_VERSION;
+    api_.self = this;
+    api_.time = [](void * s) -> double { return static_cast<Stepper *>(s)->d_->time; };
+    api_.step = [](void * s, const double * u, unsigned char * uo, int clip, double f[2]) {
+      static_cast<Stepper *>(s)->step_raw(u, uo, clip != 0, f);
+    };
+    api_.state = [](void * s, unsigned char * p, unsigned char * v, unsigned char * e, unsigned char * ps,
+                    unsigned char * tw) { static_cast<Stepper *>(s)->state_raw(p, v, e, ps, tw); };
+    api_.body_contact = [](void * s) -> int { return static_cast<Stepper *>(s)->body_contact() ? 1 : 0; };
+    api_.n_motors = long(dof_.size());
+    api_.n_joints = long(jv_.size());
+    PyObject * cap = PyCapsule_New(&api_, CFS_STEPPER_API_CAPSULE, [](PyObject * c) {
+      Py_XDECREF(static_cast<PyObject *>(PyCapsule_GetContext(c)));
+    });
+    if (!cap) throw py::error_already_set();
+    Py_INCREF(self.ptr());
+    PyCapsule_SetContext(cap, self.ptr());
+    return py::reinterpret_steal<py::object>(cap);
+  }
+
 private:
+  CfsStepperApi api_{};
   const mjModel * m_;
   mjData * d_;
   std::vector<long> dof_, act_;
@@ -160,5 +205,29 @@ PYBIND11_MODULE(_native, mod)
          py::arg("ball_qadr"), py::arg("ball_entry"), py::arg("pelvis"), py::arg("body_geom"))
     .def("step", &Stepper::step, py::arg("u"), py::arg("u_out"), py::arg("clip"))
     .def("state", &Stepper::state, py::arg("pos"), py::arg("vel"), py::arg("eff"), py::arg("pose"), py::arg("twist"))
-    .def("body_contact", &Stepper::body_contact);
+    .def("body_contact", &Stepper::body_contact)
+    .def("_api", [](py::object self) { return self.cast<Stepper &>().api(self); },
+         "the C table of stepper_api.h in a capsule (for _rcl_io.SimLoop)");
+  // contacts.ContactDetector's C++ copy, as SimLoop runs it (for the test against the Python one)
+  py::class_<CfsDetector>(mod, "Detector")
+    .def(py::init([](double lift_off_force, double touch_down_force, long lift_off_steps, long min_flight_steps) {
+           CfsDetector d;
+           d.lift_off_force = lift_off_force;
+           d.touch_down_force = touch_down_force;
+           d.lift_off_steps = lift_off_steps;
+           d.min_flight_steps = min_flight_steps;
+           return d;
+         }), py::arg("lift_off_force"), py::arg("touch_down_force"), py::arg("lift_off_steps"),
+         py::arg("min_flight_steps"))
+    .def_readwrite("in_contact", &CfsDetector::in_contact)
+    .def_readwrite("zero_run", &CfsDetector::zero_run)
+    .def_readwrite("onset_step", &CfsDetector::onset_step)
+    .def_readwrite("onset_time", &CfsDetector::onset_time)
+    .def_readwrite("flight_steps", &CfsDetector::flight_steps)
+    .def("update", [](CfsDetector & d, long step, double time, double left, double right) -> py::object {
+           CfsEvent ev;
+           if (!cfs_detector_update(d, step, time, left, right, &ev)) return py::none();
+           return py::make_tuple(ev.kind, ev.step, ev.time, ev.detected_step, ev.left_force, ev.right_force);
+         }, py::arg("step"), py::arg("time"), py::arg("left_force"), py::arg("right_force"),
+         "ContactDetector.update: None, or (kind, step, time, detected_step, left_force, right_force)");
 }
