@@ -217,3 +217,49 @@ def test_flight_pitch_profile_respects_the_flywheel_torque():
     np.testing.assert_allclose(np.gradient(th, t), om, atol=0.1)
     # 2π from rest in 0.5 s needs at least 4·2π/0.5² ≈ 100 rad/s²
     assert Fl.trapezoid(0.0, 0.0, -2 * math.pi, 0.5, 60.0, t) is None
+
+
+def _trapezoid_cruise_rate_scalar(y0, v0, y1, T, a):
+    """The cruise rate flight.trapezoid finds, the grid scanned one point at a time (its first form)."""
+    d = y1 - y0
+
+    def area(w):
+        t1, t3 = abs(w - v0) / a, abs(w) / a
+        if t1 + t3 > T:
+            return None
+        return 0.5 * (v0 + w) * t1 + w * (T - t1 - t3) + 0.5 * w * t3
+    span = 4.0 * abs(d) / T + abs(v0) + 1.0
+    grid = np.linspace(-span, span, 4001)
+    f = [None if area(w) is None else area(w) - d for w in grid]
+    for i in range(len(grid) - 1):
+        fa, fb = f[i], f[i + 1]
+        if fa is not None and fb is not None and fa * fb <= 0.0:
+            lo, hi = grid[i], grid[i + 1]
+            for _ in range(60):
+                m = 0.5 * (lo + hi)
+                if (area(m) - d) * fa <= 0.0:
+                    hi = m
+                else:
+                    lo, fa = m, area(m) - d
+            return 0.5 * (lo + hi)
+    return None
+
+
+def test_flight_pitch_profile_search_equals_the_scalar_scan():
+    """flight.trapezoid scans its grid of cruise rates with numpy (a flight plan calls it ~20 times:
+    the planner's answer at lift-off, for which the lockstep simulator holds): the same profile to the
+    bit as the point-by-point scan, over random turns, and None exactly where that finds none."""
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(400):
+        y0, v0 = rng.uniform(-1, 1), rng.uniform(-8, 8)
+        y1 = rng.choice([-1.0, 1.0]) * 2 * math.pi - rng.uniform(-0.5, 0.5)
+        T, a = rng.uniform(0.3, 0.7), rng.uniform(10.0, 150.0)
+        w = _trapezoid_cruise_rate_scalar(y0, v0, y1, T, a)
+        prof = Fl.trapezoid(y0, v0, y1, T, a, np.linspace(0.0, T, 201))
+        assert (prof is None) == (w is None)
+        if w is not None:
+            found += 1
+            # the cruise phase's rate is w exactly
+            assert w in set(prof[1].tolist())
+    assert 50 < found < 350
