@@ -76,6 +76,7 @@ def one_run(kind: str, out: Path, extra: list[str], zero_tick_s: float = 0.0) ->
     return {"loop": sim_loop_us(out / "logs" / "sim.log"),
             "cpu": {role: cpu_per_step_us(out / "logs" / f"{role}.log") for role in ("sim", "tsc")},
             "exit": rc, "outcome": s.get("outcome"), "graph_ready_s": run.get("graph_ready_s"),
+            "first_state_wait_s": s.get("first_state_wait_s"),
             "sim_s": s.get("sim_duration_s"), "clock_wall_s": s.get("clock_wall_s"),
             "rtf": s.get("real_time_factor"), "cpu_latency": latency_cell(run.get("cpu_dma_latency")),
             "sched": run.get("lockstep_sched", "?"), "tick_med": tick.get("median"), "tick_p99": tick.get("p99"),
@@ -192,12 +193,15 @@ def main() -> int:
               "every node its own process, lockstep at 2 kHz sim time")
     else:
         print(f"flip run {a.kind}: every node its own process, lockstep at 2 kHz sim time")
-    print("| run | outcome | graph ready s | sim s | stepping wall s | RTF (stepping) | tsc tick median/p99 us "
-          "| recorded odom/joint_states | CPU wake-up latency | sched | load avg | whole command s |")
-    print("|-----|---------|---------------|-------|-----------------|----------------|------------------------"
-          "|----------------------------|---------------------|-------|----------|-----------------|")
+    print("| run | outcome | graph ready s | first state answered after s | sim s | stepping wall s | RTF (stepping) "
+          "| tsc tick median/p99 us | recorded odom/joint_states | CPU wake-up latency | sched | load avg "
+          "| whole command s |")
+    print("|-----|---------|---------------|------------------------------|-------|-----------------|----------------"
+          "|------------------------|----------------------------|---------------------|-------|----------"
+          "|-----------------|")
     for i, r in enumerate(rows):
-        print(f"| {label[i]} | {r['outcome']} | {r['graph_ready_s']} | {r['sim_s']} | {r['clock_wall_s']} | {r['rtf']} | "
+        print(f"| {label[i]} | {r['outcome']} | {r['graph_ready_s']} | {r['first_state_wait_s']} | {r['sim_s']} | "
+              f"{r['clock_wall_s']} | {r['rtf']} | "
               f"{r['tick_med']}/{r['tick_p99']} | {r['recorded']} | {r['cpu_latency']} | {r['sched']} | {r['load']:.1f} | {r['process_total_s']:.1f} |")
     parts = list(dict.fromkeys(n for r in rows for n in r["loop"]))
     if parts:

@@ -49,11 +49,13 @@ def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=
 
 
 def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_at: float | None = None,
-                   resent_tail: int = 0, drop_joint_states=(), **kw) -> dict:
+                   resent_tail: int = 0, resent_head: int = 0, drop_joint_states=(), **kw) -> dict:
     """Write the bag; returns the trajectory that was written. `contact_events=False` leaves
     /contact_events out; `body_contact_at=T` adds a BODY_CONTACT event (left_knee) at sim time T;
     `resent_tail=N` adds N copies of the last /odom, 50 ms of wall time apart, after the last step
     (what a lockstep simulator re-sends while its stopped controller does not answer);
+    `resent_head=N`: the first /odom sent N more times, 50 ms apart, before the copy the controller
+    answered (a controller not yet answering at the start);
     `drop_joint_states` = sample indices whose /joint_states is left out (-1: the last)."""
     tr = trajectory(**kw)
     store = flip_typestore()
@@ -118,6 +120,10 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
                       twist=TwC(twist=Twist(linear=V3(x=lin_b[0], y=lin_b[1], z=lin_b[2]),
                                             angular=V3(x=ang_b[0], y=ang_b[1], z=ang_b[2])),
                                 covariance=np.zeros(36)))
+            if k == 0:
+                for j in range(resent_head, 0, -1):
+                    w.write(c_odom, wall0 + int(t[k] / rtf * 1e9) - j * 50_000_000,
+                            store.serialize_cdr(od, "nav_msgs/msg/Odometry"))
             put(c_odom, t[k], od, "nav_msgs/msg/Odometry")
             if k == len(t) - 1:
                 for j in range(1, resent_tail + 1):

@@ -282,14 +282,18 @@ def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
 
 # ---------------------------------------------------------------------------------------------
 # (c) summary / verdict from a synthetic bag written with rosbags
-def test_summary_real_time_factor_ignores_a_resent_last_state(tmp_path):
+@pytest.mark.parametrize("head", [0, 4])
+def test_summary_real_time_factor_ignores_resent_first_and_last_states(tmp_path, head):
     """Copies of the last state that come after the last step (a lockstep simulator re-sending it)
-    are not stepping time: the factor runs to the last step's first arrival."""
+    are not stepping time: the factor runs to the last step's first arrival; nor are the copies of
+    the first state sent before the controller answered it (start-up, reported apart as
+    first_state_wait_s): it runs from that state's last arrival."""
     from flip_tools.summary import summarize_bag
     from synthetic_bag import write_flip_bag
-    write_flip_bag(tmp_path / "bag", rotation_deg=360.0, final_z=0.9, resent_tail=10)
+    write_flip_bag(tmp_path / "bag", rotation_deg=360.0, final_z=0.9, resent_tail=10, resent_head=head)
     s = summarize_bag(tmp_path / "bag", kind="frontflip")
     assert s["sim_time_source"] == "/odom" and s["real_time_factor"] == pytest.approx(0.5, rel=1e-3)
+    assert s["first_state_wait_s"] == pytest.approx(0.05 * head, abs=1e-6)
     assert s["sim_duration_s"] == pytest.approx(1.0 + 0.3 + 0.6 + 0.4 + 1.5, abs=0.01)
 
 

@@ -141,10 +141,14 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
         s["sim_time_start_s"] = _f(st[0])
         s["sim_time_end_s"] = _f(st[-1])
         s["sim_duration_s"] = _f(st[-1] - st[0])
-        # from the first arrival of the first step to the first arrival of the last one: a lockstep
+        # from the last arrival of the first step to the first arrival of the last one: a lockstep
         # simulator whose controller has stopped re-sends its last state every 50 ms until it is
-        # stopped itself, and those copies are not stepping time
-        wall = float(np.min(tl[st == st[-1]]) - np.min(tl[st == st[0]]))
+        # stopped itself, and those copies are not stepping time; nor are the copies of the first
+        # state sent before the controller answered it (its subscriptions still matching the
+        # simulator's publishers: start-up, reported apart)
+        first = tl[st == st[0]]
+        wall = float(np.min(tl[st == st[-1]]) - np.max(first))
+        s["first_state_wait_s"] = _f(float(np.max(first) - np.min(first)), 3)
         s["clock_wall_s"] = _f(wall, 3)
         s["real_time_factor"] = _f((st[-1] - st[0]) / wall, 3) if wall > 0 else None
         s["sim_time_source"] = topic

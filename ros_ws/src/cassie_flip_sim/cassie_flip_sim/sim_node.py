@@ -312,11 +312,17 @@ class SimNode:
     def run(self):
         log = self.node.get_logger()
         need = self.min_subscribers + (1 if self.controller == 'tsc' and self.mode == 'lockstep' else 0)
+        # lockstep: the controller's /motor_command matched here too (else its first answers can be lost
+        # and the first state re-sent every COMMAND_RESEND_S: seen as 4 re-sends, 0.2 s, at the start of
+        # a graph backflip)
+        cmd_sub = (self.subs.subscription('/motor_command') if self.controller == 'tsc' and self.mode == 'lockstep'
+                   else None)
         if need:
-            log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock')
+            log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock'
+                     + (' and a publisher of /motor_command' if cmd_sub is not None else ''))
             pubs = (self.pub_js, self.pub_odom, self.pub_clock)
             while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
-                      for p in pubs):
+                      for p in pubs) or (cmd_sub is not None and cmd_sub.get_publisher_count() < 1):
                 self.executor.spin_once(timeout_sec=0.01)
                 if not self._running():
                     return 0
