@@ -312,9 +312,10 @@ class SimNode:
     def run(self):
         log = self.node.get_logger()
         need = self.min_subscribers + (1 if self.controller == 'tsc' and self.mode == 'lockstep' else 0)
-        # lockstep: the controller's /motor_command matched here too (else its first answers can be lost
-        # and the first state re-sent every COMMAND_RESEND_S: seen as 4 re-sends, 0.2 s, at the start of
-        # a graph backflip)
+        # lockstep: the controller's /motor_command matched here too (a command it sends before this side
+        # has matched it is lost, and the state re-sent after COMMAND_RESEND_S).  The first state can still
+        # be re-sent a few times (~0.25 s, in some graph runs: the controller's side of the match);
+        # summary.json reports that wait apart (first_state_wait_s)
         cmd_sub = (self.subs.subscription('/motor_command') if self.controller == 'tsc' and self.mode == 'lockstep'
                    else None)
         if need:
