@@ -333,6 +333,15 @@ class ControllerConfig:
     # it to STANDING, and the robot fell (A: 10 -> 11 of 15 start times at 9 s of simulation)
     landing_H_done: float = 2.0
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
+    # STANDING: once the COM is past the front or back of the feet on the ground (along their heading)
+    # the H_pitch weight falls linearly, to standing_H_edge_weight of its value standing_H_edge (m)
+    # beyond (0: off; see Controller._standing_H_weight).  Measured on the frontflip from 0.98 s (see
+    # there): edge weight 0.1: the COM came back over the feet in 0.3 s on 225 N*m of flywheel torque,
+    # the unloaded feet were thrown about and the robot fell; 0.3: at rest.  Falling already 3 cm
+    # inside the feet (instead of past them) took away H_pitch's damping from a robot standing near
+    # its heels with no momentum to remove (flip D from 2.1 s: shuffled, not at rest; lands with this)
+    standing_H_edge: float = 0.03
+    standing_H_edge_weight: float = 0.3
     com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
     # FLIGHT with a planned pelvis pitch (``phi_pitch``): track it as an output of its own (value, rate
@@ -484,6 +493,7 @@ class Controller:
         self.o_H_land = _mk(O.CentroidalPitchMomentum, "H_pitch", g)      # weight set per tick
         self.own_landing_outputs = [self.o_H_land, self.o_L, self.o_com, self.o_pel]
         self.standing_outputs = _ground_outputs({**g, **cfg.standing_gains})
+        self._standing_H_w0 = self.standing_outputs[0].weight       # see _standing_H_weight
         self.jumping_outputs = _ground_outputs({**g, **cfg.jumping_gains})
         self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
         self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=lambda: self.pitch)
@@ -756,6 +766,7 @@ class Controller:
             outs = self.jumping_outputs
         elif self.domain == Domain.STANDING:
             outs = self.standing_outputs
+            self._standing_H_weight()
         elif self.domain == Domain.LANDING and ref is None:
             outs = self.own_landing_outputs
             cfg = self.cfg
@@ -764,6 +775,49 @@ class Controller:
         else:
             outs = self.ground_outputs
         return outs, [des[o.name] for o in outs]
+
+    def _standing_H_weight(self):
+        """The STANDING H_pitch weight: its ``standing_gains`` value while the COM is over the span of
+        the feet on the ground (along their heading); past its front or back, falling linearly to
+        ``standing_H_edge_weight`` of it at ``standing_H_edge`` beyond and further out.
+
+        Measured (tests/offline_flip.py, frontflip from 0.98 s, somersault robot): after a rebound in
+        the landing (whose hop FLIGHT plan made the controller track the planner's re-solve of the
+        rebound's touch-down), STANDING began at the re-solve's end in mid-air, with the COM 3-8 cm
+        ahead of the toes moving forward at 0.25 m/s.
+        With the COM off the feet the ground cannot give the moment that brings it back: the QP held
+        the whole load on the toes (heels at f_min) and took that moment from the flywheel.  The H_pitch
+        output (weight 1) asks for the opposite moment (the momentum removal, -8 ... -16 N*m), so each
+        m/s^2 of COM acceleration back over the feet (moment m h ~ 20-30 N*m, flywheel) cost the QP
+        ~5-10x more in H_pitch error than it saved in COM error (weight 100): the COM crept back at
+        0.05-0.1 m/s (0.185 m off at 5.4 s, still 2 cm past the toe-load CoP at 7.5 s), the flywheel took
+        the toppling moment m g d all that time (H_pitch 5 -> 112 kg*m^2/s, 11 200 rpm) and the robot
+        was not at rest at 10 s.  Back over the feet, the removal needs no COM error and the weight is
+        back."""
+        o = self.standing_outputs[0]
+        w0 = self._standing_H_w0
+        cfg = self.cfg
+        if cfg.standing_H_edge <= 0.0 or self._foot_anchor is None:
+            o.weight = w0
+            return
+        dyn = self.dyn
+        feet = [k for k in range(2) if self.feet_contact[k]] or [0, 1]
+        a = self._foot_anchor
+        # heading of the feet (toe - heel, horizontal, summed over both) and the feet's span along it
+        hx = sum(float(a[k][0] - a[k][3]) for k in range(2))
+        hy = sum(float(a[k][1] - a[k][4]) for k in range(2))
+        n = math.hypot(hx, hy)
+        if n < 1e-6:
+            o.weight = w0
+            return
+        hx, hy = hx / n, hy / n
+        front = max(hx * float(a[k][0]) + hy * float(a[k][1]) for k in feet)
+        back = min(hx * float(a[k][3]) + hy * float(a[k][4]) for k in feet)
+        c = dyn.com
+        xi = hx * float(c[0]) + hy * float(c[1])
+        outside = max(xi - front, back - xi)
+        f = min(1.0, max(1.0 - outside / cfg.standing_H_edge, 0.0))
+        o.weight = w0 * (cfg.standing_H_edge_weight + (1.0 - cfg.standing_H_edge_weight) * f)
 
     def _flight_task(self, t):
         dyn = self.dyn
