@@ -283,8 +283,12 @@ class _Twin:
         ua, info = self.a.compute(q, v, t, details)
         ub, _ = self.b.compute(q, v, t, details)
         assert ua.tobytes() == ub.tobytes(), f"t={t}: compiled and Python targets differ by {ua - ub}"
+        wa, wb = self.a.standing_outputs[0].weight, self.b.standing_outputs[0].weight
+        assert wa == wb, f"t={t}: STANDING H_pitch weights {wa} (compiled), {wb}"
         self.ticks += 1
         b = self.b
+        if wb < b._standing_H_w0:
+            self.seen.add("COM past the feet")
         self.seen.add(("domain", int(b.domain)))
         if not all(b.feet_contact):
             self.seen.add("one foot or none")
@@ -293,24 +297,29 @@ class _Twin:
         return ua, info
 
 
-@pytest.mark.parametrize("flip", ["C", "D"])
+@pytest.mark.parametrize("flip", ["C", "D", "in place from 0.98 s"])
 def test_compiled_targets_equal_python_targets(flip):
     """ControllerConfig.compiled_targets (the ground domains' targets in C++, _native.GroundTargets)
-    against its Python reference over a whole offline flip of the somersault robot: the same torques to
-    the bit at every tick, through every domain, with the landing's leg catch re-anchored on the sink
-    rate (flip C's 3.8 m/s touch-down) and with feet off the ground (flip D's rebounds)."""
+    against its Python reference over a whole offline flip of the somersault robot: the same torques
+    and STANDING momentum weights to the bit at every tick, through every domain, with the landing's
+    leg catch re-anchored on the sink rate (flip C's 3.8 m/s touch-down), with feet off the ground
+    (flip D's rebounds), and with the COM past the feet in STANDING (the in-place frontflip from
+    0.98 s, whose rebound in the landing starts STANDING in the air, the COM ahead of the toes)."""
     import offline_flip as of
     from cassie_flip_sim.model import Scenario
-    scenario, request = {
-        "C": (Scenario.platform(0.5), dict(forward_distance=0.6, platform_height=0.5, apex_height=1.2)),
-        "D": (Scenario.raised_landing(0.1), dict(forward_distance=0.6, apex_height=1.2)),
+    scenario, request, start, seconds, seen = {
+        "C": (Scenario.platform(0.5), dict(forward_distance=0.6, platform_height=0.5, apex_height=1.2), 0.5,
+              5.0, "leg catch re-anchored"),
+        "D": (Scenario.raised_landing(0.1), dict(forward_distance=0.6, apex_height=1.2), 0.5, 5.0,
+              "one foot or none"),
+        "in place from 0.98 s": (Scenario.flat(), dict(apex_height=1.3), 0.98, 5.5, "COM past the feet"),
     }[flip]
     robot = dict(motor_speed_scale=3, flywheel_torque=260)
     sim = Simulator(scenario=scenario, **robot)
     mj = export_mjcf(sim.flywheel)
     twin = _Twin(Controller(mj, **robot), Controller(mj, compiled_targets=False, **robot))
     assert twin.a._ground is not None and twin.b._ground is None
-    r = of.run("frontflip", seconds=5.0, start=0.5, sim=sim, controller=twin, **robot, **request)
-    assert r["fell"] is None and twin.ticks == 10001
+    r = of.run("frontflip", seconds=seconds, start=start, sim=sim, controller=twin, **robot, **request)
+    assert r["fell"] is None and twin.ticks == round(seconds / 0.0005) + 1
     assert {("domain", d) for d in range(4)} <= twin.seen
-    assert ("leg catch re-anchored" if flip == "C" else "one foot or none") in twin.seen
+    assert seen in twin.seen

@@ -797,6 +797,10 @@ class Controller:
         o = self.standing_outputs[0]
         w0 = self._standing_H_w0
         cfg = self.cfg
+        if self._ground is not None:         # the same, compiled, on the compiled targets' feet
+            o.weight = self._ground.standing_H_weight(self.dyn.native, w0, cfg.standing_H_edge,
+                                                      cfg.standing_H_edge_weight)
+            return
         if cfg.standing_H_edge <= 0.0 or self._foot_anchor is None:
             o.weight = w0
             return

@@ -163,6 +163,38 @@ public:
     }
   }
 
+  /// Controller._standing_H_weight: the STANDING H_pitch weight w0 while the COM is over the span
+  /// (along the feet's heading) of the feet on the ground, falling linearly past its front or back to
+  /// edge_weight of w0 at `edge` beyond; w0 before the feet are anchored or with edge <= 0.
+  double standing_H_weight(const TickTerms & tick, double w0, double edge, double edge_weight) const
+  {
+    if (edge <= 0.0 || !anchored_)
+      return w0;
+    const auto & a = anchor_;
+    const double hx0 = (0.0 + (a[0][0] - a[0][3])) + (a[1][0] - a[1][3]);      // Python's sum()
+    const double hy0 = (0.0 + (a[0][1] - a[0][4])) + (a[1][1] - a[1][4]);
+    const double n = std::hypot(hx0, hy0);
+    if (n < 1e-6)
+      return w0;
+    const double hx = hx0 / n, hy = hy0 / n;
+    const bool any = contact_[0] || contact_[1];
+    bool first = true;
+    double front = 0.0, back = 0.0;
+    for (int k = 0; k < 2; ++k)
+    {
+      if (any && !contact_[k])
+        continue;
+      const double f = hx * a[k][0] + hy * a[k][1], b = hx * a[k][3] + hy * a[k][4];
+      front = first ? f : py_max(front, f);
+      back = first ? b : py_min(back, b);
+      first = false;
+    }
+    const double xi = hx * tick.com[0] + hy * tick.com[1];
+    const double outside = py_max(xi - front, back - xi);
+    const double f = py_min(1.0, py_max(1.0 - outside / edge, 0.0));
+    return w0 * (edge_weight + (1.0 - edge_weight) * f);
+  }
+
   py::tuple contact() const { return py::make_tuple(bool(contact_[0]), bool(contact_[1])); }
   py::object z_ground() const { return anchored_ ? py::object(py::float_(z_ground_)) : py::none(); }
 
@@ -357,6 +389,8 @@ void bind_ground(py::module_ & mod)
     .def_property_readonly("contact", &GroundTargets::contact)
     .def_property_readonly("z_ground", &GroundTargets::z_ground)
     .def("anchor", &GroundTargets::anchor, py::arg("k"))
+    .def("standing_H_weight", &GroundTargets::standing_H_weight, py::arg("tick"), py::arg("w0"), py::arg("edge"),
+         py::arg("edge_weight"))
     .def("begin", &GroundTargets::begin, py::arg("t0"), py::arg("L0"), py::arg("Ld0"), py::arg("L1"),
          py::arg("c0"), py::arg("cd0"), py::arg("c1"), py::arg("p0"), py::arg("pd0"), py::arg("p1"),
          py::arg("T"), py::arg("T2"))
