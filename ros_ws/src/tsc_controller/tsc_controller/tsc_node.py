@@ -51,7 +51,11 @@ class TscNode:
             (FlipReference, '/fslip/reference', LATCHED_QOS),
             (String, '/robot_description', LATCHED_QOS),
         ], raw=('/joint_states', '/odom'))
-        self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
+        # /motor_command's publisher comes with the controller (_on_message): the simulator waits for a
+        # publisher of it before its first step, so a publisher means a controller that answers (made
+        # here, the simulator could step before the controller existed: in one graph run it was built
+        # from /robot_description 0.19 s after the first state was sent)
+        self.pub = self.pub_ptr = None
         self.controller = None
         # leg motors' no-load speeds x this: the same robot as the simulator's (sim_node parameter)
         self.motor_speed_scale = float(self.node.declare_parameter('motor_speed_scale', 1.0).value)
@@ -64,7 +68,6 @@ class TscNode:
         # instead of rclpy's Python (the same messages; false: the Python path, e.g. to compare)
         self.rcl_io = bool(self.node.declare_parameter('rcl_io', True).value)
         self.state_wait = None
-        self.pub_ptr = self.pub.handle.pointer
         self.pending = []           # references that came before the robot description
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
                               motor_command_layout)
@@ -142,6 +145,9 @@ class TscNode:
         if topic == '/robot_description':
             self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
                                          flywheel_torque=self.flywheel_torque, **self.overrides)
+            if self.pub is None:
+                self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
+                self.pub_ptr = self.pub.handle.pointer
             self.node.get_logger().info('controller built from /robot_description'
                                         + (f', settings {self.overrides}' if self.overrides else '')
                                         + f'; {scheduling_note()}')
