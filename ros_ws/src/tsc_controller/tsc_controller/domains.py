@@ -1016,12 +1016,12 @@ class Controller:
             self.t_enter = t
         if self.domain in (Domain.LANDING, Domain.STANDING):
             self._update_feet()
-        else:           # JUMPING: the feet leave the ground on purpose at the end of the push-off
+        elif self._ground is not None:     # JUMPING: the feet leave the ground on purpose at the end of the push-off
+            self._ground.reset_feet()
+        else:
             self._foot_anchor = None
             self._z_ground = None
             self.feet_contact = [True, True]
-            if self._ground is not None:
-                self._ground.reset_feet()
         ground, outs, des = self._task(t)
         feet = (True, True)
         if ground:
