@@ -71,9 +71,17 @@ def _collect(opti, sol, Xv, Uv, Tv, p, t0, stats):
 _FUNCS = {}
 
 
+def row_scales(p: F.FSLIPParams):
+    """Units of the path-constraint rows (m, N, N·m): each row is divided by its unit so that IPOPT
+    sees O(1) constraint values and multipliers."""
+    mg = p.m * p.g
+    return np.array([0.1, 0.1, mg, mg, mg, mg, 10.0, 10.0, 100.0, 100.0, mg, mg])
+
+
 def knot_functions(p: F.FSLIPParams, N: int):
     """CasADi Functions (SX inside, mapped over N knots): dynamics f(X,U) (5×N), leg length L (1×N),
-    and the stacked path-constraint expressions g(X,U) ≥ 0 (rows named in ``PATH_ROWS``)."""
+    and the stacked path-constraint expressions g(X,U) ≥ 0 divided by :func:`row_scales` (rows
+    named in ``PATH_ROWS``)."""
     import casadi as ca
     key = (id(p), N)
     if key in _FUNCS:
@@ -89,9 +97,10 @@ def knot_functions(p: F.FSLIPParams, N: int):
     if math.isfinite(p.knee_no_load_speed):
         rdot = F.leg_geometry(x)[3]
         rows.append(Fmax * (1 - p.dqknee_dL(L) * rdot / p.knee_no_load_speed) - u[0])
+    sc = row_scales(p)[:len(rows)]
     f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
     fl = ca.Function("L", [x, u], [L]).map(N)
-    fg = ca.Function("g", [x, u], [ca.vertcat(*rows)]).map(N)
+    fg = ca.Function("g", [x, u], [ca.vertcat(*[r / s for r, s in zip(rows, sc)])]).map(N)
     _FUNCS[key] = (f, fl, fg)
     return f, fl, fg
 
@@ -101,22 +110,31 @@ PATH_ROWS = ("leg length >= L_min", "leg length <= L_max", "leg force >= 0", "F_
              "friction cone (F_x <= mu F_z)", "friction cone (F_x >= -mu F_z)", "ZMP (u <= F_z l/2)",
              "ZMP (u >= -F_z l/2)", "flywheel torque <= tau_max", "flywheel torque >= -tau_max",
              "leg force limit (knee torque)", "knee torque-speed envelope")
+#: the rows that only involve the leg length (the rest constrain the controls)
+LEG_ROWS = 2
+#: state units (x, z in m; ẋ, ż in m/s; H in kg·m²/s): the dynamics defects are divided by them
+STATE_SCALE = (0.1, 0.1, 1.0, 1.0, 10.0)
 
 
-def transcribe(opti, X, U, T, p, N):
-    """Trapezoidal dynamics + path constraints at every knot; returns the L (1×N) expression."""
+def transcribe(opti, X, U, T, p, N, free_controls=None):
+    """Trapezoidal dynamics (defects in :data:`STATE_SCALE` units) + path constraints; returns the L
+    (1×N) expression.  ``free_controls``: the knots whose controls are decision variables (default
+    all); at the others the controls are given and only the leg-length rows are imposed there (a
+    constraint on a given value has a zero gradient: a degenerate row for IPOPT)."""
+    import casadi as ca
     f, fl, fg = knot_functions(p, N)
     dt = T / (N - 1)
     fx = f(X, U)
-    opti.subject_to(X[:, 1:] == X[:, :-1] + 0.5 * dt * (fx[:, :-1] + fx[:, 1:]))
-    opti.subject_to(ca_vec(fg(X, U)) >= 0)
+    defect = X[:, 1:] - X[:, :-1] - 0.5 * dt * (fx[:, :-1] + fx[:, 1:])
+    opti.subject_to(ca.vec(ca.diag(1.0 / ca.DM(STATE_SCALE)) @ defect) == 0)
+    G = fg(X, U)
+    free = list(range(N)) if free_controls is None else list(free_controls)
+    given = [k for k in range(N) if k not in set(free)]
+    opti.subject_to(ca.vec(G[:, free]) >= 0)
+    if given:
+        opti.subject_to(ca.vec(G[:LEG_ROWS, given]) >= 0)
     opti.subject_to(X[1, :] >= 0.3)
     return fl(X, U)
-
-
-def ca_vec(M):
-    import casadi as ca
-    return ca.vec(M)
 
 
 def cost_terms(L, U, dt, N):
@@ -159,41 +177,57 @@ def add_rate_limits(opti, U, dt, p, limits=RATE_LIMITS):
 
 
 def _variables(opti, p, N):
-    """(X, U, T) with the controls scaled to O(1) decision variables."""
+    """(X, U, Us, T): states and controls as O(1) decision variables (H in units of
+    :data:`H_SCALE`; F^s of m g, τ and u of :data:`U_SCALE`)."""
     import casadi as ca
-    X = opti.variable(5, N)
+    Xs = opti.variable(5, N)
+    X = ca.diag(ca.DM([1.0, 1.0, 1.0, 1.0, H_SCALE])) @ Xs
     Us = opti.variable(3, N)
-    sc = ca.DM([p.m * p.g, U_SCALE[1], U_SCALE[2]])
-    U = ca.diag(sc) @ Us
-    return X, U, Us, opti.variable()
+    U = ca.diag(control_scale(p)) @ Us
+    return X, U, Us, opti.variable(), Xs
+
+
+def control_scale(p):
+    import casadi as ca
+    return ca.DM([p.m * p.g, U_SCALE[1], U_SCALE[2]])
+
+
+H_SCALE = 10.0   # kg·m²/s, unit of the momentum decision variable
 
 
 class JumpingProblem:
     """The jumping NLP built once per (params, L0, N); the task (sign, apex, distance, platform)
-    enters as ``opti.parameter`` so repeated requests reuse the same IPOPT instance."""
+    enters as ``opti.parameter`` so repeated requests reuse the same IPOPT instance.
+
+    The given values are not decision variables: the first knot (standing at rest) and the
+    lift-off controls (F^s = τ = u = 0 at the last knot) are constants, so that no equality pins a
+    variable that an active inequality also bounds (a degenerate KKT system that IPOPT factorised
+    or not depending on the BLAS kernel's rounding)."""
 
     def __init__(self, p: F.FSLIPParams, L0: float, N: int = 50, T_bounds=(0.3, 1.0)):
         import casadi as ca
         self.p, self.L0, self.N = p, L0, N
         opti = ca.Opti()
-        X, U, Us, T = _variables(opti, p, N)
-        self.X, self.U, self.Us, self.T = X, U, Us, T
+        self.X0, self.U0 = F.static_state(p, L0)
+        self.Xv = opti.variable(5, N - 1)                 # knots 1..N-1, H in H_SCALE units
+        self.Usv = opti.variable(3, N - 2)                # knots 1..N-2, scaled controls
+        self.T = T = opti.variable()
+        X = ca.horzcat(ca.DM(self.X0), ca.diag(ca.DM([1.0, 1.0, 1.0, 1.0, H_SCALE])) @ self.Xv)
+        U = ca.horzcat(ca.DM(self.U0), ca.diag(control_scale(p)) @ self.Usv, ca.DM.zeros(3, 1))
+        self.X, self.U = X, U
         self.P = opti.parameter(4)          # sign, apex, distance, platform
         sign, apex, dist, plat = (self.P[i] for i in range(4))
         dt = T / (N - 1)
-        self.X0, self.U0 = F.static_state(p, L0)
-        opti.subject_to(X[:, 0] == self.X0)
-        opti.subject_to(U[:, 0] == self.U0)
         opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
-        self.Ls = Ls = transcribe(opti, X, U, T, p, N)
-        opti.subject_to(U[:, N - 1] == 0)          # lift-off: F_z = F_x = u = 0
+        # lift-off at the last knot: F_z = F_x = u = 0 (the controls there are 0)
+        self.Ls = Ls = transcribe(opti, X, U, T, p, N, free_controls=range(1, N - 1))
         add_rate_limits(opti, U, dt, p)
         # keep the feet loaded until the push-off (the robot's contact detector would otherwise see
         # an early lift-off): F_z ≥ FZ_MIN m g, ramping to 0 over the last FZ_RAMP knots
         xs, us = ca.SX.sym("x", 5), ca.SX.sym("u", 3)
         Fz = ca.Function("Fz", [xs, us], [F.grf(xs, us, p)[1]]).map(N)(X, U)
-        ramp = np.minimum(1.0, (N - 1 - np.arange(N)) / FZ_RAMP) * FZ_MIN * p.m * p.g
-        opti.subject_to(Fz[:N - 1] >= ramp[:N - 1].reshape(1, -1))
+        ramp = np.minimum(1.0, (N - 1 - np.arange(N)) / FZ_RAMP) * FZ_MIN
+        opti.subject_to(Fz[1:N - 1] / (p.m * p.g) >= ramp[1:N - 1].reshape(1, -1))
         xN = X[:, N - 1]
         zd = xN[3]
         opti.subject_to(zd >= 0.3)
@@ -225,15 +259,11 @@ class JumpingProblem:
         zdg[-1] = zd_g
         # most of a forward distance comes from leaning (x at lift-off), the rest from ẋ
         xg = 0.4 * task.distance * s ** 2
-        opti.set_initial(self.X[0, :], xg)
-        opti.set_initial(self.X[1, :], zg)
-        opti.set_initial(self.X[2, :], np.gradient(xg, s * Tg))
-        opti.set_initial(self.X[3, :], zdg)
         H_g = task.sign * 2 * math.pi * float(p.I(p.L_max)) / Tf_g
-        opti.set_initial(self.X[4, :], H_g * s)
-        opti.set_initial(self.Us[0, :], (1.5 - s) * (s < 0.98))
-        opti.set_initial(self.Us[1, :], H_g / Tg / U_SCALE[1] * np.ones(N))
-        opti.set_initial(self.Us[2, :], np.zeros(N))
+        Xg = np.vstack([xg, zg, np.gradient(xg, s * Tg), zdg, H_g * s / H_SCALE])
+        opti.set_initial(self.Xv, Xg[:, 1:])
+        Ug = np.vstack([(1.5 - s), H_g / Tg / U_SCALE[1] * np.ones(N), np.zeros(N)])
+        opti.set_initial(self.Usv, Ug[:, 1:N - 1])
         opti.set_initial(self.T, Tg)
 
     def solve(self, task: "JumpTask") -> Solution:
