@@ -44,7 +44,9 @@ def run_grid(flywheel, motor_speed_scale, flywheel_torque):
                             flywheel=flywheel, motor_speed_scale=motor_speed_scale,
                             flywheel_torque=flywheel_torque)
             rec.update(verdict="accepted", iterations=r.figures["iterations"],
-                       solve_time=r.figures["solve_time"], attempt=r.figures.get("attempt", 0))
+                       solve_time=r.figures["solve_time"], attempt=r.figures.get("attempt", 0),
+                       lift_off={k: r.lift_off[k] for k in ("zdot", "xdot", "beta", "momentum")},
+                       flight_torque_needed=r.figures["flight_torque_needed"])
         except P.InfeasibleRequest as e:
             rec.update(verdict="rejected", reason=str(e), limit=getattr(e, "limit", "?"))
         rec["wall"] = time.perf_counter() - t0

@@ -1,5 +1,7 @@
-"""Pre-checks with named, quantified reasons (before IPOPT), and IPOPT failures turned into the
-most violated constraint (paper §III-B constraints)."""
+"""Named, quantified reasons for a rejection: pre-checks before IPOPT (malformed requests, the apex the
+knees can reach, the momentum the stance can build), the limits that bind the elastic optimum of a
+task beyond reach (paper §III-B constraints), and the flight the plan leaves (momentum transmission,
+§IV-A: can the flywheel turn the body in that time?)."""
 from __future__ import annotations
 
 import math
@@ -16,7 +18,11 @@ STANCE_T_MAX = 1.0      # s, upper bound of the jumping duration (jumping.Jumpin
 
 class InfeasibleRequest(ValueError):
     """A flip request the robot cannot do (or a malformed one); the message names the binding
-    limit and by how much."""
+    limit and by how much, ``limit`` names it alone (e.g. "knee torque–speed envelope")."""
+
+    def __init__(self, message, limit="malformed request"):
+        super().__init__(message)
+        self.limit = limit
 
 
 def _finite(name, v):
@@ -60,7 +66,7 @@ def max_vertical_jump(p: F.FSLIPParams, dt=5e-4):
     while L < p.L_max:
         Fm = float(p.F_max(L))
         if math.isfinite(p.knee_no_load_speed):
-            Fm *= max(0.0, 1.0 - float(p.dqknee_dL(L)) * v / p.knee_no_load_speed)
+            Fm *= min(1.0, max(0.0, F.envelope_factor(float(p.dqknee_dL(L)) * v / p.knee_no_load_speed)))
         a = Fm / p.m - p.g
         v += a * dt
         L += v * dt
@@ -86,7 +92,7 @@ def precheck(kind, apex, distance, platform, p: F.FSLIPParams, L0: float):
         lim = "knee torque–speed envelope" if math.isfinite(p.knee_no_load_speed) else "leg force limit"
         raise InfeasibleRequest(
             f"apex {apex:.2f} m needs lift-off speed ≈{need:.2f} m/s; {lim} reached: max reachable "
-            f"apex ≈ {amax:.2f} m (lift-off ≈{vmax:.2f} m/s), over by {apex - amax:.2f} m")
+            f"apex ≈ {amax:.2f} m (lift-off ≈{vmax:.2f} m/s), over by {apex - amax:.2f} m", lim)
     if kind != "hop":
         # conservative: the longest flight this apex allows (lift-off from a low, 0.75 m, mass height)
         zd = math.sqrt(max(2 * p.g * (apex - com_h - 0.75), 0.01))
@@ -97,32 +103,71 @@ def precheck(kind, apex, distance, platform, p: F.FSLIPParams, L0: float):
             raise InfeasibleRequest(
                 f"{kind}: flight {T:.2f} s needs pitch momentum ≥{H_need:.0f} kg·m²/s; flywheel torque "
                 f"{p.tau_max:.0f} N·m over ≤{STANCE_T_MAX:.1f} s stance gives {H_cap:.0f}: over by "
-                f"{H_need - H_cap:.0f} kg·m²/s")
+                f"{H_need - H_cap:.0f} kg·m²/s", "flywheel torque (stance)")
 
 
-def diagnose(err, p: F.FSLIPParams) -> str:
-    """Most violated constraint at IPOPT's last iterate (``err.problem`` from jumping)."""
-    from . import jumping as Jm
-    prob = getattr(err, "problem", None)
-    if prob is None:
-        return str(err)
-    dbg = prob.opti.debug
-    try:
-        X = np.array(dbg.value(prob.X)).T
-        U = np.array(dbg.value(prob.U)).T
-    except Exception:   # noqa: BLE001
-        return str(err)
-    worst, name = 0.0, "unknown"
-    _, _, fg = Jm.knot_functions(p, prob.N)
-    G = np.array(fg(X.T, U.T))
-    scale = np.array([0.1, 0.1, p.m * p.g, p.m * p.g, p.m * p.g, p.m * p.g, 10, 10, 100, 100,
-                      p.m * p.g, p.m * p.g])[:G.shape[0]]
-    for i in range(G.shape[0]):
-        v = float(-G[i].min()) / scale[i]
-        if v > worst:
-            worst, name = v, f"{Jm.PATH_ROWS[i]} (violated by {-G[i].min():.3g} at knot {int(G[i].argmin())})"
-    for nm, e in prob.task_rows.items():
-        v = abs(float(dbg.value(e)))
-        if v > worst:
-            worst, name = v, f"{nm} (residual {v:.3g})"
-    return f"{err}; most violated constraint: {name}"
+#: the physical limit each constraint family stands for (the names of a rejection)
+LIMIT_OF = {
+    "leg length >= L_min": "leg length range", "leg length <= L_max": "leg length range",
+    "leg force >= 0": "unilateral leg force", "F_z >= 0": "unilateral ground contact",
+    "friction cone (F_x <= mu F_z)": "friction cone", "friction cone (F_x >= -mu F_z)": "friction cone",
+    "ZMP (u <= F_z l/2)": "ZMP inside the foot", "ZMP (u >= -F_z l/2)": "ZMP inside the foot",
+    "flywheel torque <= tau_max": "flywheel torque", "flywheel torque >= -tau_max": "flywheel torque",
+    "leg force limit (knee torque)": "knee torque", "knee torque-speed envelope": "knee torque–speed envelope",
+}
+TASK_NAMES = {"flip encoding (thetadot*T_flight = ±2π − 2β)": "rotation",
+              "apex height": "apex", "forward distance": "forward distance"}
+
+
+def unreachable_message(err, p: F.FSLIPParams):
+    """(message, limit) of a :class:`fslip_planner.jumping.TaskUnreachable`: what the closest plan
+    within every limit reaches, and the limits that hold it there (by multiplier share)."""
+    import math as _m
+    parts = []
+    for k, v in err.residuals.items():
+        name = TASK_NAMES.get(k, k)
+        if k.startswith("flip"):
+            if abs(v) >= 1e-4:
+                parts.append(f"the rotation it leaves for the flight is off by {_m.degrees(v):+.1f}°")
+        elif abs(v) >= 1e-4:
+            parts.append(f"{name} {abs(v):.3f} m {'beyond' if v > 0 else 'short of'} the request")
+    binding = [(n, s, w) for n, s, w in err.binding]
+    named = ", ".join(f"{LIMIT_OF.get(n, n)} ({100 * s:.0f} %"
+                      + (f", {w[0]:.2f}–{w[1]:.2f} s into the push" if w else "") + ")"
+                      for n, s, w in binding[:3])
+    top = next((LIMIT_OF.get(n, n) for n, _, _ in binding), "unknown")
+    return (f"beyond the robot's limits: the closest plan within them has "
+            f"{'; '.join(parts) or 'task residuals below 1e-4'}; binding: {named}", top)
+
+
+def flight_requirement(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
+    """Least flywheel torque (N·m) that turns the body without the flywheel by ±2π − 2β in the
+    planned flight and brings it to rest (momentum transmission, eq. momentumTrans), with the
+    body's inertia I(L) − I_flywheel along the planned tuck; ``omega0`` the body's lift-off rate
+    (the pelvis tracks β on the ground: β̇)."""
+    from . import flight as Fl
+    sign = Fl.SIGN[kind]
+    if sign == 0.0:
+        return 0.0
+    turn = sign * 2 * math.pi - 2 * lift_off["beta"]
+    T1, L_tuck = Fl.tuck_timing(kind, T, lift_off["L"])
+
+    def inertia(t):
+        L = Fl.leg_profile(lift_off["L"], L_tuck, L_land, T1, np.asarray(t, float))[0]
+        return np.array([float(p.I(v)) for v in np.ravel(L)]) - I_fw
+    return Fl.flight_torque_needed(turn, omega0, T, inertia)
+
+
+def check_flight(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
+    """The flight the plan leaves must be turnable with the flywheel's torque; InfeasibleRequest
+    with the numbers otherwise.  Returns the torque it needs."""
+    from . import flight as Fl
+    need = flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land)
+    if need > p.tau_max:
+        turn = math.degrees(abs(Fl.SIGN[kind] * 2 * math.pi - 2 * lift_off["beta"]))
+        raise InfeasibleRequest(
+            f"{kind}: the {T:.2f} s flight this plan leaves needs ≥{need:.0f} N·m of flywheel torque to "
+            f"turn the body {turn:.0f}° and stop it (momentum transmission with the tucked inertia); "
+            f"the flywheel motor gives {p.tau_max:.0f} N·m: over by {need - p.tau_max:.0f} N·m "
+            f"(a higher apex gives a longer flight)", "flywheel torque (flight)")
+    return need

@@ -109,6 +109,26 @@ def trapezoid(y0, v0, y1, T, a, t):
     return y, yd, ydd
 
 
+def tuck_timing(kind, T, L_lo, L_tuck=0.6, t1_fraction=0.75):
+    """(T1, L_tuck) of the tuck (§IV-B) in a flight of T s: retracted by T1/2, extended by T1; none
+    for a hop (a hop turns nothing: feet placed and flat from lift-off on, T1 = 0)."""
+    if SIGN[kind] == 0.0:
+        return 0.0, L_lo
+    T1 = t1_fraction * T
+    # the tuck must fit its time: a min-jerk retraction by d over T1/2 peaks at 5.77 d/(T1/2)^2;
+    # keep it within TUCK_MAX_ACC (a 0.33 s flight would otherwise ask for ~100 m/s^2)
+    return T1, max(L_tuck, L_lo - TUCK_MAX_ACC * (0.5 * T1) ** 2 / 5.77)
+
+
+def leg_profile(L_lo, L_tuck, L_land, T1, t):
+    """(L, L̇, L̈) of the flight: the tuck of :func:`tuck_profile` (none for T1 = 0); ``L_land``
+    None: the lift-off length."""
+    L_land = L_lo if L_land is None else min(L_lo, L_land)
+    if T1 <= 0.0:
+        return np.full_like(t, L_lo), np.zeros_like(t), np.zeros_like(t)
+    return tuck_profile(L_lo, min(L_tuck, L_lo), L_land, T1, t)
+
+
 def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=0.6,
                 t1_fraction=0.75, dt=0.002, g=F.G, max_body_acc=None, hard_body_acc=None, L_land=None):
     """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T).
@@ -122,14 +142,7 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     if kind not in SIGN:
         raise ValueError(f"unknown kind {kind!r}")
     T = float(F.flight_time(max(zdot, 0.05), platform, g))
-    if SIGN[kind] == 0.0:
-        # a hop turns nothing: no tuck, feet placed and flat from lift-off on (T1 = 0)
-        t1_fraction, L_tuck = 0.0, L_lo
-    T1 = t1_fraction * T
-    if T1 > 0.0:
-        # the tuck must fit its time: a min-jerk retraction by d over T1/2 peaks at 5.77 d/(T1/2)^2;
-        # keep it within TUCK_MAX_ACC (a 0.33 s flight would otherwise ask for ~100 m/s^2)
-        L_tuck = max(L_tuck, L_lo - TUCK_MAX_ACC * (0.5 * T1) ** 2 / 5.77)
+    T1, L_tuck = tuck_timing(kind, T, L_lo, L_tuck, t1_fraction)
     theta_T = SIGN[kind] * 2 * math.pi - beta_lo
     n = max(int(math.ceil(T / dt)), 2) + 1
     t = np.linspace(0.0, T, n)
@@ -149,7 +162,39 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
                 th = trapezoid(theta0, omega0, theta_T, T, min(1.02 * hi, hard_body_acc), t)
     if th is None:
         th = cubic(theta0, omega0, theta_T, 0.0, T, t)
-    L_land = L_lo if L_land is None else min(L_lo, L_land)
-    L = tuck_profile(L_lo, min(L_tuck, L_lo), L_land, T1, t) if T1 > 0.0 else (
-        np.full_like(t, L_lo), np.zeros_like(t), np.zeros_like(t))
+    L = leg_profile(L_lo, L_tuck, L_land, T1, t)
     return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)
+
+
+def max_body_turn(h0, T, inertia, tau_max, n=400):
+    """Largest rotation (rad, in the direction of ``h0``'s sign convention: positive) that the body
+    without the flywheel can make in a flight of ``T`` s and end at rest, when only the flywheel
+    motor (|torque| ≤ ``tau_max``) changes its momentum (momentum transmission, eq. momentumTrans).
+
+    The body's own pitch momentum h = I_rest(t) ω̄ starts at ``h0`` (the lift-off rate times the
+    lift-off inertia) and must end at 0; |ḣ| ≤ τ_max, and ω̄ = h / I_rest(t) with ``inertia(t)``
+    the body's inertia along the planned tuck.  The most rotation comes from the bang-bang momentum
+    h(t) = min(h0 + τ t, τ (T − t)) (clipped at 0 from below), integrated over the flight."""
+    t = np.linspace(0.0, T, n)
+    h = np.minimum(h0 + tau_max * t, tau_max * (T - t))
+    w = h / inertia(t)
+    return float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(t)))
+
+
+def flight_torque_needed(turn, omega0, T, inertia, tau_hi=1e4):
+    """Least flywheel torque (N·m) that turns the body by ``turn`` rad (sign = direction) in a flight
+    of ``T`` s from the lift-off rate ``omega0`` and brings it to rest (:func:`max_body_turn`
+    bisected on the torque); ``inf`` where even ``tau_hi`` cannot (a flight too short)."""
+    s = 1.0 if turn >= 0 else -1.0
+    h0 = s * omega0 * float(inertia(np.array([0.0]))[0])
+    D = abs(turn)
+    if max_body_turn(h0, T, inertia, tau_hi) < D:
+        return math.inf
+    lo, hi = 0.0, tau_hi
+    for _ in range(50):
+        m = 0.5 * (lo + hi)
+        if max_body_turn(h0, T, inertia, m) >= D:
+            hi = m
+        else:
+            lo = m
+    return hi

@@ -76,6 +76,14 @@ class FSLIPParams:
         return self.reg("F_max", L) / (2.0 * self.reg.info.get("knee_torque_limit", 195.2))
 
 
+def envelope_factor(speed_ratio):
+    """The share of the stall torque a Cassie motor gives at |ω|/ω₀ = ``speed_ratio`` on its rising
+    side, above the flat part: 2 (1 − |ω|/ω₀) (Cassie's published motor model, min(1, ·) of it
+    clamped at 0; as ``cassie_flip_sim.motor_limits``).  The planner imposes F ≤ F_max and
+    F ≤ F_max · this as two smooth rows instead of the min."""
+    return 2.0 * (1.0 - speed_ratio)
+
+
 def leg_geometry(X):
     """(r, sinβ, cosβ, ṙ) of the state X = [x, z, ẋ, ż, H]."""
     x, z, xd, zd = X[0], X[1], X[2], X[3]

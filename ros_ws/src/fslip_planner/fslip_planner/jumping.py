@@ -5,8 +5,9 @@ Decision variables: X = [x, z, ẋ, ż, H] (5×N), U = [F^s, τ, u] (3×N), T (s
 Constraints (every knot): trapezoidal dynamics; start standing at rest on the nominal leg length
 (F^s = m g, τ = u = 0); L_min ≤ L ≤ L_max (L = r + F^s/K, computed); F^s ≥ 0; F_z ≥ 0; friction
 cone |F_x| ≤ μ F_z; ZMP |u| ≤ F_z l/2; flywheel |τ| ≤ τ_max (see below); leg force
-F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope,
-F^s ≤ F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
+F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope (Cassie's
+published motor model: full torque up to half the no-load speed ω₀, then falling linearly to 0),
+F^s ≤ 2 F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
 lift-off at the last knot: F_z = F_x = u = 0 (⇔ F^s = τ = u = 0); before that the feet stay loaded,
 F_z ≥ ½ m g ramping to 0 over the last 3 knots (the robot's contact detector must not see an early
 lift-off, e.g. in a free-fall crouch).
@@ -25,6 +26,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
@@ -96,7 +98,7 @@ def knot_functions(p: F.FSLIPParams, N: int):
             p.tau_max - u[1], p.tau_max + u[1], Fmax - u[0]]
     if math.isfinite(p.knee_no_load_speed):
         rdot = F.leg_geometry(x)[3]
-        rows.append(Fmax * (1 - p.dqknee_dL(L) * rdot / p.knee_no_load_speed) - u[0])
+        rows.append(Fmax * F.envelope_factor(p.dqknee_dL(L) * rdot / p.knee_no_load_speed) - u[0])
     sc = row_scales(p)[:len(rows)]
     f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
     fl = ca.Function("L", [x, u], [L]).map(N)
@@ -116,12 +118,14 @@ LEG_ROWS = 2
 STATE_SCALE = (0.1, 0.1, 1.0, 1.0, 10.0)
 
 
-def transcribe(opti, X, U, T, p, N, free_controls=None):
+def transcribe(opti, X, U, T, p, N, free_controls=None, named=None):
     """Trapezoidal dynamics (defects in :data:`STATE_SCALE` units) + path constraints; returns the L
     (1×N) expression.  ``free_controls``: the knots whose controls are decision variables (default
     all); at the others the controls are given and only the leg-length rows are imposed there (a
-    constraint on a given value has a zero gradient: a degenerate row for IPOPT)."""
+    constraint on a given value has a zero gradient: a degenerate row for IPOPT).  ``named``: a dict
+    that receives the constraints by name (for the multipliers of :func:`binding_limits`)."""
     import casadi as ca
+    named = {} if named is None else named
     f, fl, fg = knot_functions(p, N)
     dt = T / (N - 1)
     fx = f(X, U)
@@ -130,10 +134,13 @@ def transcribe(opti, X, U, T, p, N, free_controls=None):
     G = fg(X, U)
     free = list(range(N)) if free_controls is None else list(free_controls)
     given = [k for k in range(N) if k not in set(free)]
-    opti.subject_to(ca.vec(G[:, free]) >= 0)
+    named["path"] = (ca.vec(G[:, free]) >= 0, free, G.shape[0])
+    opti.subject_to(named["path"][0])
     if given:
-        opti.subject_to(ca.vec(G[:LEG_ROWS, given]) >= 0)
-    opti.subject_to(X[1, :] >= 0.3)
+        named["path_given"] = (ca.vec(G[:LEG_ROWS, given]) >= 0, given, LEG_ROWS)
+        opti.subject_to(named["path_given"][0])
+    named["mass height >= 0.3 m"] = X[1, :] >= 0.3
+    opti.subject_to(named["mass height >= 0.3 m"])
     return fl(X, U)
 
 
@@ -167,13 +174,20 @@ U_SCALE = (None, 100.0, 10.0)    # F^s scaled by m g, τ by 100 N·m, u by 10 N�
 RATE_LIMITS = (20.0, 5000.0, 1000.0)
 
 
-def add_rate_limits(opti, U, dt, p, limits=RATE_LIMITS):
-    """|U[:, k+1] − U[:, k]| ≤ rate · ΔT for the three controls (see :data:`RATE_LIMITS`)."""
+RATE_NAMES = ("leg force rate", "flywheel torque rate", "foot torque rate")
+
+
+def add_rate_limits(opti, U, dt, p, limits=RATE_LIMITS, named=None):
+    """|U[:, k+1] − U[:, k]| ≤ rate · ΔT for the three controls (see :data:`RATE_LIMITS`), in units
+    of the rate times ΔT."""
     import casadi as ca
-    rate = ca.DM([limits[0] * p.m * p.g, limits[1], limits[2]])
+    rate = [limits[0] * p.m * p.g, limits[1], limits[2]]
     dU = U[:, 1:] - U[:, :-1]
     for i in range(3):
-        opti.subject_to(opti.bounded(-rate[i] * dt, dU[i, :], rate[i] * dt))
+        c = opti.bounded(-1.0, dU[i, :] / (rate[i] * dt), 1.0)
+        opti.subject_to(c)
+        if named is not None:
+            named[RATE_NAMES[i]] = c
 
 
 def _variables(opti, p, N):
@@ -188,11 +202,17 @@ def _variables(opti, p, N):
 
 
 def control_scale(p):
+    """Units of the controls (F^s in m g, τ and u in :data:`U_SCALE`)."""
     import casadi as ca
     return ca.DM([p.m * p.g, U_SCALE[1], U_SCALE[2]])
 
 
 H_SCALE = 10.0   # kg·m²/s, unit of the momentum decision variable
+#: units of the task rows (flip encoding rad, apex m, distance m) in the elastic problem
+TASK_UNITS = (0.01, 0.01, 0.01)
+#: L1 penalty per unit of task residual: well above the task rows' multipliers at an optimum (the
+#: cost is O(1)), so that the elastic optimum meets the task exactly wherever that is possible
+ELASTIC_WEIGHT = 100.0
 
 
 class JumpingProblem:
@@ -204,9 +224,10 @@ class JumpingProblem:
     variable that an active inequality also bounds (a degenerate KKT system that IPOPT factorised
     or not depending on the BLAS kernel's rounding)."""
 
-    def __init__(self, p: F.FSLIPParams, L0: float, N: int = 50, T_bounds=(0.3, 1.0)):
+    def __init__(self, p: F.FSLIPParams, L0: float, N: int = 50, T_bounds=(0.3, 1.0), elastic=False):
         import casadi as ca
-        self.p, self.L0, self.N = p, L0, N
+        self.p, self.L0, self.N, self.elastic = p, L0, N, elastic
+        self.named = named = {}
         opti = ca.Opti()
         self.X0, self.U0 = F.static_state(p, L0)
         self.Xv = opti.variable(5, N - 1)                 # knots 1..N-1, H in H_SCALE units
@@ -218,19 +239,22 @@ class JumpingProblem:
         self.P = opti.parameter(4)          # sign, apex, distance, platform
         sign, apex, dist, plat = (self.P[i] for i in range(4))
         dt = T / (N - 1)
-        opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
+        named["stance duration bounds"] = opti.bounded(T_bounds[0], T, T_bounds[1])
+        opti.subject_to(named["stance duration bounds"])
         # lift-off at the last knot: F_z = F_x = u = 0 (the controls there are 0)
-        self.Ls = Ls = transcribe(opti, X, U, T, p, N, free_controls=range(1, N - 1))
-        add_rate_limits(opti, U, dt, p)
+        self.Ls = Ls = transcribe(opti, X, U, T, p, N, free_controls=range(1, N - 1), named=named)
+        add_rate_limits(opti, U, dt, p, named=named)
         # keep the feet loaded until the push-off (the robot's contact detector would otherwise see
         # an early lift-off): F_z ≥ FZ_MIN m g, ramping to 0 over the last FZ_RAMP knots
         xs, us = ca.SX.sym("x", 5), ca.SX.sym("u", 3)
         Fz = ca.Function("Fz", [xs, us], [F.grf(xs, us, p)[1]]).map(N)(X, U)
         ramp = np.minimum(1.0, (N - 1 - np.arange(N)) / FZ_RAMP) * FZ_MIN
-        opti.subject_to(Fz[1:N - 1] / (p.m * p.g) >= ramp[1:N - 1].reshape(1, -1))
+        named["feet loaded until the push-off"] = Fz[1:N - 1] / (p.m * p.g) >= ramp[1:N - 1].reshape(1, -1)
+        opti.subject_to(named["feet loaded until the push-off"])
         xN = X[:, N - 1]
         zd = xN[3]
-        opti.subject_to(zd >= 0.3)
+        named["lift-off vertical speed >= 0.3 m/s"] = zd >= 0.3
+        opti.subject_to(named["lift-off vertical speed >= 0.3 m/s"])
         self.Tf = Tf = F.flight_time(zd, plat, p.g)
         self.beta = beta = F.leg_angle(xN)
         self.thd = thd = xN[4] / p.I(Ls[N - 1])
@@ -241,10 +265,23 @@ class JumpingProblem:
             "apex height": xN[1] + zd ** 2 / (2 * p.g) + com_h - apex,
             "forward distance": 2 * xN[0] + xN[2] * Tf - dist,
         }
-        for e in self.task_rows.values():
-            opti.subject_to(e == 0)
-        opti.minimize(cost_terms(Ls, U, dt, N))
-        opti.solver("ipopt", IPOPT_OPTS)
+        cost = cost_terms(Ls, U, dt, N)
+        if elastic:
+            # the task as soft rows (exact L1 penalty): always feasible, its optimum says how far the
+            # request is from what the limits allow and, by its multipliers, which limits bind
+            n = len(self.task_rows)
+            self.slack = (opti.variable(n), opti.variable(n))
+            opti.subject_to(ca.vertcat(*self.slack) >= 0)
+            unit = ca.DM(TASK_UNITS)
+            e = ca.vertcat(*self.task_rows.values()) / unit
+            opti.subject_to(e == self.slack[0] - self.slack[1])
+            cost = cost + ELASTIC_WEIGHT * ca.sum1(self.slack[0] + self.slack[1])
+            opti.solver("ipopt", dict(IPOPT_OPTS, **{"ipopt.max_iter": 1000}))
+        else:
+            for e in self.task_rows.values():
+                opti.subject_to(e == 0)
+            opti.solver("ipopt", IPOPT_OPTS)
+        opti.minimize(cost)
         self.opti = opti
 
     def _guess(self, task: "JumpTask"):
@@ -266,13 +303,22 @@ class JumpingProblem:
         opti.set_initial(self.Usv, Ug[:, 1:N - 1])
         opti.set_initial(self.T, Tg)
 
-    def solve(self, task: "JumpTask") -> Solution:
-        """Cold solve (fixed initial guess) for ``task``; RuntimeError on IPOPT failure (the
-        exception carries ``.problem`` for :func:`fslip_planner.feasibility.diagnose`)."""
+    def solve(self, task: "JumpTask", start: Optional[Solution] = None) -> Solution:
+        """Cold solve for ``task`` from the fixed initial guess, or from the knots of ``start``
+        (a solution of the same N); RuntimeError on IPOPT failure (the exception carries
+        ``.problem``).  In the elastic problem, ``extra`` holds the task residuals and the binding
+        limits (:meth:`binding_limits`)."""
         t0 = time.perf_counter()
         opti = self.opti
         opti.set_value(self.P, [task.sign, task.apex, task.distance, task.platform])
         self._guess(task)
+        if start is not None:
+            Xs = start.X.T.copy()
+            Xs[4] /= H_SCALE
+            opti.set_initial(self.Xv, Xs[:, 1:])
+            cs = np.array([self.p.m * self.p.g, U_SCALE[1], U_SCALE[2]])
+            opti.set_initial(self.Usv, start.U.T[:, 1:-1] / cs[:, None])
+            opti.set_initial(self.T, start.T)
         try:
             sol = opti.solve()
         except RuntimeError as e:
@@ -283,15 +329,98 @@ class JumpingProblem:
         res = _collect(opti, sol, self.X, self.U, self.T, self.p, t0, opti.stats())
         res.extra.update(flight_time=float(sol.value(self.Tf)), beta=float(sol.value(self.beta)),
                          thetadot=float(sol.value(self.thd)), com_h=self.com_h)
+        if self.elastic:
+            res.extra["task_residuals"] = {k: float(sol.value(e)) for k, e in self.task_rows.items()}
+            res.extra["binding"] = self.binding_limits(sol)
         return res
+
+    def binding_limits(self, sol):
+        """[(name, share, where)] of the constraints that hold the optimum, by the share of their
+        multipliers' magnitude (the rows are in O(1) units, see :func:`row_scales`), largest first.
+        ``where``: the span of the stance (s) over which the family binds."""
+        T = float(sol.value(self.T))
+        dt = T / (self.N - 1)
+        weight = {}
+        for name, c in self.named.items():
+            if isinstance(c, tuple):                 # path rows: split by family
+                con, knots, nrows = c
+                lam = np.abs(np.array(sol.value(self.opti.dual(con))).ravel()).reshape(len(knots), nrows)
+                for i in range(nrows):
+                    if lam[:, i].sum() > 0:
+                        k = np.asarray(knots)[lam[:, i] > 1e-3 * lam[:, i].max()]
+                        prev = weight.get(PATH_ROWS[i], (0.0, []))
+                        weight[PATH_ROWS[i]] = (prev[0] + lam[:, i].sum(), prev[1] + list(k))
+            else:
+                lam = np.abs(np.array(sol.value(self.opti.dual(c))).ravel())
+                k = np.flatnonzero(lam > 1e-3 * lam.max()) + 1 if lam.size >= self.N - 3 and lam.max() > 0 else []
+                weight[name] = (lam.sum(), list(k))
+        total = sum(w for w, _ in weight.values()) or 1.0
+        out = [(n, w / total, (min(k) * dt, max(k) * dt) if len(k) else None)
+               for n, (w, k) in weight.items() if w / total >= 0.02]
+        return sorted(out, key=lambda r: -r[1])
 
 
 _PROBLEMS = {}
 
 
-def solve_jumping(task: JumpTask, p: F.FSLIPParams, L0: float, N: int = 50) -> Solution:
-    """Solve the jumping optimisation (problem cached per params/L0/N)."""
-    key = (id(p), round(L0, 6), N)
+class PlannerFailure(RuntimeError):
+    """The optimiser did not reach a verdict (neither a plan nor the elastic analysis converged)."""
+
+
+def problem(p: F.FSLIPParams, L0: float, N: int = 50, elastic: bool = False) -> JumpingProblem:
+    """The jumping NLP for (params, L0, N), built once and cached."""
+    key = (id(p), round(L0, 6), N, elastic)
     if key not in _PROBLEMS:
-        _PROBLEMS[key] = JumpingProblem(p, L0, N)
-    return _PROBLEMS[key].solve(task)
+        _PROBLEMS[key] = JumpingProblem(p, L0, N, elastic=elastic)
+    return _PROBLEMS[key]
+
+
+#: the elastic optimum meets the task when every residual is below this many task units (1e-5 m/rad)
+TASK_MET = 1e-3
+
+
+def solve_jumping(task: JumpTask, p: F.FSLIPParams, L0: float, N: int = 50) -> Solution:
+    """Solve the jumping optimisation with a bounded, deterministic ladder:
+
+    1. the NLP from its fixed initial guess;
+    2. if IPOPT fails: the elastic NLP (task rows soft), which always has a feasible point.  If its
+       optimum misses the task, the request is beyond the limits: :class:`TaskUnreachable` carries
+       the residuals and the binding limits.  Otherwise the NLP again, started from that optimum;
+    3. if that fails too, the elastic optimum is the plan when it meets the task to IPOPT's tolerance.
+
+    ``extra['attempt']`` says which step gave the plan (0, 1, 2); :class:`PlannerFailure` if none did."""
+    strict = problem(p, L0, N)
+    try:
+        sol = strict.solve(task)
+        sol.extra["attempt"] = 0
+        return sol
+    except RuntimeError as e:
+        first = str(e)
+    try:
+        el = problem(p, L0, N, elastic=True).solve(task)
+    except RuntimeError as e:
+        raise PlannerFailure(f"{first}; the elastic analysis failed too ({e})") from None
+    res = el.extra["task_residuals"]
+    miss = max(abs(v) / u for v, u in zip(res.values(), TASK_UNITS))
+    if miss > TASK_MET:
+        raise TaskUnreachable(res, el.extra["binding"], el)
+    try:
+        sol = strict.solve(task, start=el)
+        sol.extra["attempt"] = 1
+        return sol
+    except RuntimeError:
+        pass
+    if max(abs(v) for v in res.values()) <= IPOPT_OPTS["ipopt.tol"]:
+        el.extra["attempt"] = 2
+        return el
+    raise PlannerFailure(f"{first}; started again from the elastic optimum (task residuals "
+                         f"{', '.join(f'{k} {v:.2g}' for k, v in res.items())}), IPOPT failed again")
+
+
+class TaskUnreachable(RuntimeError):
+    """The elastic optimum misses the task: ``residuals`` (task row → achieved − asked, rad or m)
+    and ``binding`` (see :meth:`JumpingProblem.binding_limits`)."""
+
+    def __init__(self, residuals, binding, solution):
+        super().__init__("the task is beyond the limits")
+        self.residuals, self.binding, self.solution = residuals, binding, solution

@@ -20,7 +20,8 @@ import numpy as np
 from . import fslip as F
 from . import flight as Fl
 from . import jumping as Jm
-from .feasibility import InfeasibleRequest, diagnose, max_vertical_jump, precheck, validate_inputs
+from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck,
+                          unreachable_message, validate_inputs)
 from .landing import LandingProblem
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "Reference", "PlanResult", "plan_flip",
@@ -222,14 +223,29 @@ def _tolist(d):
 
 
 def _solve(kind, apex, distance, platform, robot: _Robot):
+    """The jumping plan of a request, checked for its flight; InfeasibleRequest naming the binding
+    limit otherwise."""
     p = robot.params
     precheck(kind, apex, distance, platform, p, robot.L0)
     task = Jm.JumpTask(kind, apex, distance, platform)
+    what = f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform {platform:.2f} m"
     try:
-        return Jm.solve_jumping(task, p, robot.L0)
-    except RuntimeError as e:
-        raise InfeasibleRequest(f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform "
-                                f"{platform:.2f} m: {diagnose(e, p)}") from None
+        sol = Jm.solve_jumping(task, p, robot.L0)
+    except Jm.TaskUnreachable as e:
+        msg, limit = unreachable_message(e, p)
+        raise InfeasibleRequest(f"{what}: {msg}", limit) from None
+    except Jm.PlannerFailure as e:
+        raise InfeasibleRequest(f"{what}: no verdict, the optimiser failed: {e}", "optimiser") from None
+    X = sol.X[-1]
+    omega0 = float((X[1] * X[2] - X[0] * X[3]) / (X[0] ** 2 + X[1] ** 2))     # β̇ at lift-off
+    lo = {"beta": float(sol.extra["beta"]), "L": float(sol.L[-1])}
+    try:
+        sol.extra["flight_torque_needed"] = check_flight(
+            kind, lo, omega0, float(sol.extra["flight_time"]), p, robot.I_fw,
+            robot.L0 + LANDING_LEG_EXTENSION)
+    except InfeasibleRequest as e:
+        raise InfeasibleRequest(f"{what}: {e}", e.limit) from None
+    return sol
 
 
 def _figures(sol: Jm.Solution, robot: _Robot):
@@ -249,7 +265,8 @@ def _figures(sol: Jm.Solution, robot: _Robot):
     f = {"liftoff_zdot": float(X[3]), "liftoff_xdot": float(X[2]), "liftoff_pitch_rate": float(thd),
          "flight_time": float(T_f), "rotation_to_go": float(thd * T_f),
          "peak_flywheel_speed": float(peak), "solve_time": float(sol.solve_time),
-         "iterations": int(sol.iterations)}
+         "iterations": int(sol.iterations), "attempt": int(sol.extra.get("attempt", 0)),
+         "flight_torque_needed": float(sol.extra.get("flight_torque_needed", 0.0))}
     lo = {"zdot": float(X[3]), "xdot": float(X[2]), "beta": float(sol.extra["beta"]),
           "thetadot": float(thd), "momentum": float(X[4]), "L": float(L), "x": float(X[0]),
           "z": float(X[1]), "inertia": I_tot}
