@@ -4,9 +4,8 @@
 // in the node graph (scripts/bench_graph.py), where it shares one CPU with the controller.
 //
 // Same arithmetic, in the same order, as the numpy reference (Simulator(backend="python")): the
-// torque clip of motor_limits.MotorLimits.clip (the envelope of motor_limits.available_torque),
-// contacts.FootForces, Simulator's accessors.  Built with -ffp-contract=off (no fused multiply-adds
-// numpy does not make).
+// torque clip of motor_limits.MotorLimits.clip, contacts.FootForces, Simulator's accessors.  Built
+// with -ffp-contract=off (no fused multiply-adds numpy does not make).
 //
 // Stepper._api() hands the same step, state and body-contact test to sim_node's compiled stepping
 // loop (_rcl_io.SimLoop) as a C table of function pointers (stepper_api.h); Detector is that loop's
@@ -44,21 +43,6 @@ unsigned char * out_ptr(py::array & a, long n, const char * what)
   return static_cast<unsigned char *>(a.mutable_data());
 }
 inline void put(unsigned char * a, long i, double v) { std::memcpy(a + 8 * i, &v, 8); }
-
-// np.minimum(a, b) / np.maximum(a, b): a NaN in either gives NaN
-inline double np_min(double a, double b) { return a != a ? a : (b != b ? b : (a < b ? a : b)); }
-inline double np_max(double a, double b) { return a != a ? a : (b != b ? b : (a > b ? a : b)); }
-
-/// The torque-speed envelope of Cassie's published motor model, tlim = clamp(2 tau_max (1 - |w|/w0),
-/// 0, tau_max) (-tlim <= u <= tlim).  The reference is the Python definition,
-/// cassie_flip_sim.motor_limits.available_torque; this is it operation for operation, in its order
-/// (x = |w| * (1/w0); t = ((1 - x) * 2) * tau_max; min(t, tau_max); max(., 0)), so the steps are equal
-/// bit for bit.  The controller's compiled QP bounds have the same copy (tsc_controller/native/limits.cpp).
-inline double available_torque(double w, double tau_max, double inv_w0)
-{
-  const double t = (1.0 - std::fabs(w) * inv_w0) * 2.0 * tau_max;
-  return np_max(np_min(t, tau_max), 0.0);
-}
 }  // namespace
 
 class Stepper {
@@ -108,9 +92,11 @@ public:
     for (long i = 0; i < n; ++i) {
       double v = ui[i];
       if (clip) {
-        // MotorLimits.clip: min(max(u, -tlim), tlim), tlim = motor_limits.available_torque
-        const double t = available_torque(d_->qvel[dof_[i]], lim_[i], inv_w0_[i]);
-        v = np_min(np_max(v, -t), t);
+        // MotorLimits.bounds: avail = limit * max(1 - |w| / w0, 0); ub = avail if w > 0, lb = -avail if w < 0
+        const double w = d_->qvel[dof_[i]], L = lim_[i];
+        const double avail = L * std::max(1.0 - std::fabs(w) * inv_w0_[i], 0.0);
+        const double ub = w > 0 ? avail : L, lb = w < 0 ? -avail : -L;
+        v = std::min(std::max(v, lb), ub);
       }
       put(uo, i, v);
       d_->ctrl[act_[i]] = v;

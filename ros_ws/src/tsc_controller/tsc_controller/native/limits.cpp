@@ -1,11 +1,5 @@
-// Compiled torque-speed envelope of the TSC (tsc_controller._native.torque_bounds): the bounds of
-// limits.TorqueLimits.bounds without numpy's per-call overhead.  The reference is the Python
-// definition, cassie_flip_sim.motor_limits.available_torque (Cassie's published motor model):
-//   tlim = clamp(2 tau_max (1 - |w|/w0), 0, tau_max),  -tlim <= u <= tlim,
-// here operation for operation in its order (x = |w| * (1/w0); t = ((1 - x) * 2) * tau_max;
-// min(t, tau_max); max(., 0), NaN propagating as numpy's minimum / maximum), so the results are equal
-// bit for bit (built with -ffp-contract=off).  The simulator's compiled step has the same copy
-// (cassie_flip_sim/native/step.cpp).
+// Compiled torque-speed envelope of the TSC (tsc_controller._native.torque_bounds): the formula of
+// limits.TorqueLimits.bounds, operation for operation, without numpy's per-call overhead.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -17,24 +11,13 @@ using DArr = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 namespace
 {
-  // np.minimum(a, b) / np.maximum(a, b): a NaN in either gives NaN
-  inline double np_min(double a, double b)
+  // np.maximum(r, 0): NaN stays NaN
+  inline double max0(double r)
   {
-    return a != a ? a : (b != b ? b : (a < b ? a : b));
-  }
-  inline double np_max(double a, double b)
-  {
-    return a != a ? a : (b != b ? b : (a > b ? a : b));
+    return r != r ? r : (r > 0.0 ? r : 0.0);
   }
 
-  /// motor_limits.available_torque: clamp(2 tau_max (1 - |w| inv_w0), 0, tau_max)
-  inline double available_torque(double w, double tau_max, double inv_w0)
-  {
-    const double t = (1.0 - std::fabs(w) * inv_w0) * 2.0 * tau_max;
-    return np_max(np_min(t, tau_max), 0.0);
-  }
-
-  /// (u_lb, u_ub) = (-tlim, tlim), tlim = available_torque per motor.
+  /// (u_lb, u_ub): -tau_max max(1 - fmax(-w, 0)/w0, 0), tau_max max(1 - fmax(w, 0)/w0, 0).
   py::tuple torque_bounds(const DArr & w, const DArr & inv_w0, const DArr & tau_max)
   {
     const py::ssize_t n = w.size();
@@ -45,9 +28,8 @@ namespace
     const double *wp = w.data(), *iw = inv_w0.data(), *tm = tau_max.data();
     for (py::ssize_t i = 0; i < n; ++i)
     {
-      const double t = available_torque(wp[i], tm[i], iw[i]);
-      l[i] = -t;
-      u[i] = t;
+      l[i] = max0(1.0 - std::fmax(-1.0 * wp[i], 0.0) * iw[i]) * -tm[i];
+      u[i] = max0(1.0 - std::fmax(1.0 * wp[i], 0.0) * iw[i]) * tm[i];
     }
     return py::make_tuple(lb, ub);
   }
