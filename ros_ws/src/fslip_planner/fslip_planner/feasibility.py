@@ -140,11 +140,12 @@ def unreachable_message(err, p: F.FSLIPParams):
             f"{'; '.join(parts) or 'task residuals below 1e-4'}; binding: {named}", top)
 
 
-def flight_requirement(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
+def flight_requirement(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land, tucked=False):
     """Least flywheel torque (N·m) that turns the body without the flywheel by ±2π − 2β in the
-    planned flight and brings it to rest (momentum transmission, eq. momentumTrans), with the
-    body's inertia I(L) − I_flywheel along the planned tuck; ``omega0`` the body's lift-off rate
-    (the pelvis tracks β on the ground: β̇)."""
+    planned flight and brings it to rest (momentum transmission, eq. momentumTrans); ``omega0`` the
+    body's lift-off rate (the pelvis tracks β on the ground: β̇).  The body's inertia I(L) − I_flywheel
+    along the planned tuck, or (``tucked``) at the deepest tuck the whole flight: the least any
+    flight of this duration can need."""
     from . import flight as Fl
     sign = Fl.SIGN[kind]
     if sign == 0.0:
@@ -153,21 +154,28 @@ def flight_requirement(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land
     T1, L_tuck = Fl.tuck_timing(kind, T, lift_off["L"])
 
     def inertia(t):
-        L = Fl.leg_profile(lift_off["L"], L_tuck, L_land, T1, np.asarray(t, float))[0]
+        t = np.asarray(t, float)
+        if tucked:
+            return np.full(t.shape, float(p.I(Fl.TUCK_LENGTH)) - I_fw)
+        L = Fl.leg_profile(lift_off["L"], L_tuck, L_land, T1, t)[0]
         return np.array([float(p.I(v)) for v in np.ravel(L)]) - I_fw
     return Fl.flight_torque_needed(turn, omega0, T, inertia)
 
 
 def check_flight(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
-    """The flight the plan leaves must be turnable with the flywheel's torque; InfeasibleRequest
-    with the numbers otherwise.  Returns the torque it needs."""
+    """The flight the plan leaves must be turnable with the flywheel's torque: InfeasibleRequest
+    with the numbers when even a body tucked to its shortest legs for the whole flight needs more
+    torque than the flywheel motor gives (a necessary condition; the robot has flown longer than
+    its plan, by ~0.1 m of apex as the paper reports, so the planned tuck's figure is no verdict).
+    Returns (needed with the planned tuck, needed fully tucked)."""
     from . import flight as Fl
-    need = flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land)
-    if need > p.tau_max:
+    need_tucked = flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land, tucked=True)
+    if need_tucked > p.tau_max:
         turn = math.degrees(abs(Fl.SIGN[kind] * 2 * math.pi - 2 * lift_off["beta"]))
         raise InfeasibleRequest(
-            f"{kind}: the {T:.2f} s flight this plan leaves needs ≥{need:.0f} N·m of flywheel torque to "
-            f"turn the body {turn:.0f}° and stop it (momentum transmission with the tucked inertia); "
-            f"the flywheel motor gives {p.tau_max:.0f} N·m: over by {need - p.tau_max:.0f} N·m "
-            f"(a higher apex gives a longer flight)", "flywheel torque (flight)")
-    return need
+            f"{kind}: the {T:.2f} s flight this plan leaves needs ≥{need_tucked:.0f} N·m of flywheel "
+            f"torque to turn the body {turn:.0f}° and stop it (momentum transmission, legs tucked to "
+            f"{Fl.TUCK_LENGTH:.2f} m the whole flight); the flywheel motor gives {p.tau_max:.0f} N·m: "
+            f"over by {need_tucked - p.tau_max:.0f} N·m (a higher apex gives a longer flight)",
+            "flywheel torque (flight)")
+    return flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land), need_tucked

@@ -22,6 +22,7 @@ from . import fslip as F
 
 SIGN = {"backflip": -1.0, "frontflip": 1.0, "hop": 0.0}
 TUCK_MAX_ACC = 30.0   # m/s^2, peak leg-length acceleration of the tuck
+TUCK_LENGTH = 0.6     # m, leg length of the deepest tuck
 
 
 def cubic(y0, v0, y1, v1, T, t):
@@ -109,7 +110,7 @@ def trapezoid(y0, v0, y1, T, a, t):
     return y, yd, ydd
 
 
-def tuck_timing(kind, T, L_lo, L_tuck=0.6, t1_fraction=0.75):
+def tuck_timing(kind, T, L_lo, L_tuck=TUCK_LENGTH, t1_fraction=0.75):
     """(T1, L_tuck) of the tuck (§IV-B) in a flight of T s: retracted by T1/2, extended by T1; none
     for a hop (a hop turns nothing: feet placed and flat from lift-off on, T1 = 0)."""
     if SIGN[kind] == 0.0:
@@ -129,7 +130,7 @@ def leg_profile(L_lo, L_tuck, L_land, T1, t):
     return tuck_profile(L_lo, min(L_tuck, L_lo), L_land, T1, t)
 
 
-def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=0.6,
+def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=TUCK_LENGTH,
                 t1_fraction=0.75, dt=0.002, g=F.G, max_body_acc=None, hard_body_acc=None, L_land=None):
     """Flight reference samples.  Returns dict(t, theta(3×n), L(3×n), T, T1, theta_T).
     ``max_body_acc`` (rad/s², the flywheel torque limit over the rest of the body's inertia): the

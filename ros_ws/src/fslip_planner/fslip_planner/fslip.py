@@ -77,11 +77,11 @@ class FSLIPParams:
 
 
 def envelope_factor(speed_ratio):
-    """The share of the stall torque a Cassie motor gives at |ω|/ω₀ = ``speed_ratio`` on its rising
-    side, above the flat part: 2 (1 − |ω|/ω₀) (Cassie's published motor model, min(1, ·) of it
-    clamped at 0; as ``cassie_flip_sim.motor_limits``).  The planner imposes F ≤ F_max and
-    F ≤ F_max · this as two smooth rows instead of the min."""
-    return 2.0 * (1.0 - speed_ratio)
+    """The share of the stall torque a leg motor gives at |ω|/ω₀ = ``speed_ratio`` while it drives:
+    1 − |ω|/ω₀, the simulator's envelope (``cassie_flip_sim.motor_limits``; the leg force row is
+    F^s ≤ F_max · this).  Cassie's published curve, 2 (1 − |ω|/ω₀) capped at 1, waits for the
+    controller to be tuned for it (branch published-envelope)."""
+    return 1.0 - speed_ratio
 
 
 def leg_geometry(X):

@@ -5,9 +5,9 @@ Decision variables: X = [x, z, ẋ, ż, H] (5×N), U = [F^s, τ, u] (3×N), T (s
 Constraints (every knot): trapezoidal dynamics; start standing at rest on the nominal leg length
 (F^s = m g, τ = u = 0); L_min ≤ L ≤ L_max (L = r + F^s/K, computed); F^s ≥ 0; F_z ≥ 0; friction
 cone |F_x| ≤ μ F_z; ZMP |u| ≤ F_z l/2; flywheel |τ| ≤ τ_max (see below); leg force
-F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope (Cassie's
-published motor model: full torque up to half the no-load speed ω₀, then falling linearly to 0),
-F^s ≤ 2 F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
+F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope (the
+simulator's, :func:`fslip_planner.fslip.envelope_factor`),
+F^s ≤ F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
 lift-off at the last knot: F_z = F_x = u = 0 (⇔ F^s = τ = u = 0); before that the feet stay loaded,
 F_z ≥ ½ m g ramping to 0 over the last 3 knots (the robot's contact detector must not see an early
 lift-off, e.g. in a free-fall crouch).

@@ -240,7 +240,7 @@ def _solve(kind, apex, distance, platform, robot: _Robot):
     omega0 = float((X[1] * X[2] - X[0] * X[3]) / (X[0] ** 2 + X[1] ** 2))     # β̇ at lift-off
     lo = {"beta": float(sol.extra["beta"]), "L": float(sol.L[-1])}
     try:
-        sol.extra["flight_torque_needed"] = check_flight(
+        sol.extra["flight_torque_needed"], sol.extra["flight_torque_needed_tucked"] = check_flight(
             kind, lo, omega0, float(sol.extra["flight_time"]), p, robot.I_fw,
             robot.L0 + LANDING_LEG_EXTENSION)
     except InfeasibleRequest as e:
@@ -266,7 +266,8 @@ def _figures(sol: Jm.Solution, robot: _Robot):
          "flight_time": float(T_f), "rotation_to_go": float(thd * T_f),
          "peak_flywheel_speed": float(peak), "solve_time": float(sol.solve_time),
          "iterations": int(sol.iterations), "attempt": int(sol.extra.get("attempt", 0)),
-         "flight_torque_needed": float(sol.extra.get("flight_torque_needed", 0.0))}
+         "flight_torque_needed": float(sol.extra.get("flight_torque_needed", 0.0)),
+         "flight_torque_needed_tucked": float(sol.extra.get("flight_torque_needed_tucked", 0.0))}
     lo = {"zdot": float(X[3]), "xdot": float(X[2]), "beta": float(sol.extra["beta"]),
           "thetadot": float(thd), "momentum": float(X[4]), "L": float(L), "x": float(X[0]),
           "z": float(X[1]), "inertia": I_tot}
