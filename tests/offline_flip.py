@@ -2,10 +2,14 @@
 wired the way the node graph wires them (contact events -> planner -> references -> controller),
 in one process.  For tests and experiments; the nodes are the product.
 
-Started at a graph run's start time (its jumping reference's), it is that run to the bit: the
-controller gets the state the simulator publishes (``StateConverter.from_simulator`` reads
-``Simulator.state_into``) at the step's stamp (:func:`stamp`), events and references carry stamps as
-the nodes' messages do (tests/test_graph_flips.py compares a graph backflip's every command)."""
+Started at a graph run's start time (its jumping reference's), with ``node_state=True`` it is that
+run to the bit: the controller reads the state the simulator publishes as tsc_node reads it
+(:class:`NodeStateReader`: ``Simulator.state_into`` into the serialized /joint_states and /odom,
+``StateConverter.from_cdr`` from their bytes) at the step's stamp (:func:`stamp`), events and
+references carry stamps as the nodes' messages do (tests/test_graph_flips.py compares a graph
+backflip's every command).  By default it reads it with ``StateConverter.from_simulator`` (the same
+numbers through ``from_ros``, whose numpy dot normalises the quaternion by the BLAS kernel's summation:
+the same bits as tsc_node's only under a kernel that sums as ``from_cdr`` does)."""
 from __future__ import annotations
 
 import math
@@ -35,17 +39,52 @@ def measured(sim: Simulator, t: float | None = None) -> MeasuredState:
                          support_center=sim.support_center())
 
 
+class NodeStateReader:
+    """(q, v) of a simulator's state as tsc_node reads it (``TscNode._state``): the state written into
+    serialized /joint_states and /odom as sim_node publishes them (``Simulator.state_into`` into the
+    fields of ``lockstep.RawMessage`` templates) and converted from their bytes by
+    ``StateConverter.from_cdr``; the first message (a layout not yet seen) through the numpy views and
+    ``from_ros``, its layout then handed on."""
+
+    def __init__(self, conv: StateConverter, sim: Simulator):
+        from cassie_flip_sim.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import JointState
+        n = len(sim.joint_names)
+        self.conv = conv
+        self.js = RawMessage(JointState(name=list(sim.joint_names), position=[0.0] * n, velocity=[0.0] * n,
+                                        effort=[0.0] * n), joint_state_layout)
+        odom = Odometry(child_frame_id="pelvis")
+        odom.header.frame_id = "world"
+        self.od = RawMessage(odom, odometry_layout)
+        self.read_js, self.read_od = MessageReader(joint_state_layout), MessageReader(odometry_layout)
+
+    def __call__(self, sim: Simulator):
+        f, o = self.js.fields, self.od.fields
+        sim.state_into(f["position"], f["velocity"], f["effort"], o["pose"], o["twist"])
+        js_buf, odom_buf = bytes(self.js.buf), bytes(self.od.buf)
+        qv = self.conv.from_cdr(js_buf, odom_buf)
+        if qv is None:
+            js, od = self.read_js(js_buf), self.read_od(odom_buf)
+            qv = self.conv.from_ros(self.read_js.names[0], js["position"], js["velocity"], od["pose"][:3],
+                                    od["pose"][3:], od["twist"][:3], od["twist"][3:])
+            self.conv.use_cdr_layout(self.read_js.layout(), self.read_od.layout())
+        return qv
+
+
 def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
     return SampledReference(ref.domain, ref.t, ref.names, ref.value, ref.d_value, ref.dd_value,
                             start_time=start_time, plan_id=plan_id, parameters=ref.parameters)
 
 
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
-        **request):
-    """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events."""
+        node_state=False, **request):
+    """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
+    ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`)."""
     sim = sim or Simulator()
     ctl = controller or Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
+    read_state = NodeStateReader(sc, sim) if node_state else sc.from_simulator
     session = FlipSession(kind, **request)
     ref = session.jumping_reference()
     start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
@@ -72,7 +111,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
             if r is not None:
                 log["references"].append((t_ev, r))
                 ctl.set_reference(to_sampled(r, t_ev))
-        q, v = sc.from_simulator(sim)
+        q, v = read_state(sim)
         u, info = ctl.compute(q, v, stamp(sim))
         sim.step(u)
         if sim.step_index % every == 0:
