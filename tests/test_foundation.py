@@ -76,7 +76,10 @@ def test_tsc_node_refuses_bad_controller_settings(ros_graph):
 # accepted=false with a reason, and the node keeps serving (a valid request is then accepted).
 def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
     planner = str(Path(sys.executable).parent / "planner_node")
-    ros_graph.start("planner", [planner], node_name="planner_node")
+    # the somersault robot: the published robot's backflip is rejected (its flywheel cannot turn the
+    # body in the flight; the reason says so, below)
+    ros_graph.start("planner", [planner, "--ros-args", "-p", "motor_speed_scale:=3.0", "-p",
+                                "flywheel_torque:=260.0"], node_name="planner_node")
     ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
     tn = ros_graph.test_node
     R = RequestFlip.Request
@@ -88,7 +91,9 @@ def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
         r = tn.call(RequestFlip, "/request_flip", req)
         assert not r.accepted and r.reason, what
     assert "apex" in tn.call(RequestFlip, "/request_flip", bad["unreachable apex"]).reason
-    ok = tn.call(RequestFlip, "/request_flip", R(kind=R.BACKFLIP))
+    wide = tn.call(RequestFlip, "/request_flip", R(kind=R.BACKFLIP, apex_height=1.3, forward_distance=2.5))
+    assert not wide.accepted and "binding" in wide.reason, wide.reason
+    ok = tn.call(RequestFlip, "/request_flip", R(kind=R.BACKFLIP, apex_height=1.3))
     assert ok.accepted, ok.reason
     assert ok.plan_id == 1 and ok.flight_time > 0 and ok.liftoff_pitch_rate < 0
     # a second request while that flip is under way is refused cleanly

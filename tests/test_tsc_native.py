@@ -297,7 +297,9 @@ class _Twin:
         return ua, info
 
 
-@pytest.mark.parametrize("flip", ["C", "D", "in place from 0.98 s"])
+# (the in-place frontflip from 0.98 s, whose rebound put the COM past the feet in STANDING, no longer
+# does so with the kernel-independent planner and start state: that branch has no twin case now)
+@pytest.mark.parametrize("flip", ["C", "D"])
 def test_compiled_targets_equal_python_targets(flip):
     """ControllerConfig.compiled_targets (the ground domains' targets in C++, _native.GroundTargets)
     against its Python reference over a whole offline flip of the somersault robot: the same torques

@@ -321,6 +321,11 @@ def standing_state(model: mujoco.MjModel, scen: Union[str, Scenario, None] = Non
         dq = np.zeros(model.nv)
         dq[dofs] = -np.linalg.lstsq(J[:, dofs], r, rcond=None)[0]
         mujoco.mj_integratePos(model, qpos, dq, 1.0)
+    # lstsq's last bits depend on the BLAS kernel, and the feet are then placed exactly on the
+    # ground (contact at distance 0): rounded to 1e-10 (the closure holds to 1e-12 before), the
+    # start state is the same on every machine
+    qpos = np.round(qpos, 10)
+    mujoco.mj_normalizeQuat(model, qpos)
     d.qpos[:] = qpos
     mujoco.mj_kinematics(model, d)
     lowest = foot_points_world(model, d)[:, 2].min() - P.FOOT_RADIUS
