@@ -100,6 +100,10 @@ class SimNode:
         self.mode = _declare(n, 'mode', 'lockstep')
         self.controller = _declare(n, 'controller', 'tsc')
         self.duration = float(_declare(n, 'duration', 0.0))
+        # after a run that ended by its duration: keep the publishers until a stop comes, so that a
+        # subscriber still holding a backlog (a stalled recorder) gets it; Fast DDS drops the samples
+        # of a writer that is gone
+        self.linger = bool(_declare(n, 'linger', False))
         flywheel = _declare(n, 'flywheel', 'I')
         inertia = float(_declare(n, 'flywheel_inertia', 0.0))
         mass = float(_declare(n, 'flywheel_mass', 0.0))
@@ -444,7 +448,16 @@ class SimNode:
                 per['rest'] = max(1e6 * wall / k - sum(per.values()), 0.0)
                 log.info('loop per step (mean us): ' + ', '.join(f'{n} {v:.0f}' for n, v in per.items()))
                 log.info(cpu_per_step_line(cpu0, k))
+        if self.linger and n_steps is not None and k >= n_steps:
+            self._linger(k)
         return 0
+
+    def _linger(self, k):
+        """The run is over (its duration; /clock stands at its last state): serve nothing but
+        keep the publishers until a stop comes."""
+        self.node.get_logger().info(f'lingering at sim t = {k * self.dt:.3f} s until stopped')
+        while self._running():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def _take_references(self):
         sub = self.subs.subscription('/fslip/reference')
