@@ -47,6 +47,9 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
                                                                       "tsc": 0}
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
+    # the run ends where the tool planned it (answer's flight time + settle), not seconds later
+    end = json.loads((out / "run.json").read_text())["end_sim_time"]
+    assert end <= s["sim_duration_s"] <= end + 0.5, (end, s["sim_duration_s"])
 
 
 def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path):
