@@ -475,7 +475,10 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     assert s["response"]["accepted"] is True
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
                                                                       "tsc": 0}
-    assert s["processes"]["sim"]["stopped_by"] == "exited"          # its duration ended the run
+    # the tool ends the run at the planned end (flight time + settle) and stops the sim there
+    assert s["processes"]["sim"]["stopped_by"] == "SIGINT"
+    end = json.loads((out / "run.json").read_text())["end_sim_time"]
+    assert end <= s["sim_duration_s"] <= end + 0.5
     assert s["topics"]["/fslip/reference"] == 3 and s["topics"]["/contact_events"] == 2
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
     run = json.loads((out / "run.json").read_text())
