@@ -67,6 +67,11 @@ class TscNode:
         # wait for the state and publish the command through rcl's C API (cassie_flip_sim._rcl_io)
         # instead of rclpy's Python (the same messages; false: the Python path, e.g. to compare)
         self.rcl_io = bool(self.node.declare_parameter('rcl_io', True).value)
+        # recorders of /motor_command (besides the simulator) to match before the first answer: the
+        # simulator re-sends its first state until then, and no command is lost to a late match
+        # (a recorder matched 0.12-0.6 s in and missed the first 245-1,190 commands)
+        self.min_subscribers = int(self.node.declare_parameter('min_subscribers', 0).value)
+        self.matched = self.min_subscribers <= 0
         self.state_wait = None
         self.pending = []           # references that came before the robot description
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
@@ -134,6 +139,10 @@ class TscNode:
 
     def _on_state(self, js_buf, odom_buf):
         """A /joint_states and the /odom of the same step: answer it (again, for a re-sent one)."""
+        if not self.matched:
+            if self.pub.get_subscription_count() < 1 + self.min_subscribers:
+                return
+            self.matched = True
         k_js = read_stamp_ns(js_buf)
         if k_js == self.answered_ns:
             self._publish_command(k_js)          # the simulator asked again: same answer
