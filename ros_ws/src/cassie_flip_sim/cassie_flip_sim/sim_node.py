@@ -326,12 +326,8 @@ class SimNode:
             log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock'
                      + (' and a publisher of /motor_command' if cmd_sub is not None else ''))
             pubs = (self.pub_js, self.pub_odom, self.pub_clock)
-            # and the recorders (min_subscribers) subscribed to /motor_command in the graph: the
-            # controller's first commands were lost to a recorder that matched it 0.6 s in
-            cmd_readers = 1 + self.min_subscribers
             while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
-                      for p in pubs) or (cmd_sub is not None and cmd_sub.get_publisher_count() < 1) or (
-                    cmd_sub is not None and self.node.count_subscribers('/motor_command') < cmd_readers):
+                      for p in pubs) or (cmd_sub is not None and cmd_sub.get_publisher_count() < 1):
                 self.executor.spin_once(timeout_sec=0.01)
                 if not self._running():
                     return 0

@@ -106,15 +106,15 @@ def precheck(kind, apex, distance, platform, p: F.FSLIPParams, L0: float):
                 f"{H_need - H_cap:.0f} kg·m²/s", "flywheel torque (stance)")
 
 
-#: the physical limit each constraint family stands for (the names of a rejection)
-LIMIT_OF = {
-    "leg length >= L_min": "leg length range", "leg length <= L_max": "leg length range",
-    "leg force >= 0": "unilateral leg force", "F_z >= 0": "unilateral ground contact",
-    "friction cone (F_x <= mu F_z)": "friction cone", "friction cone (F_x >= -mu F_z)": "friction cone",
-    "ZMP (u <= F_z l/2)": "ZMP inside the foot", "ZMP (u >= -F_z l/2)": "ZMP inside the foot",
-    "flywheel torque <= tau_max": "flywheel torque", "flywheel torque >= -tau_max": "flywheel torque",
-    "leg force limit (knee torque)": "knee torque", "knee torque-speed envelope": "knee torque–speed envelope",
-}
+def _limit_names():
+    """The physical limit each path-constraint family (``jumping.PATH_ROWS``) stands for."""
+    from .jumping import PATH_ROWS
+    limits = ("leg length range", "leg length range", "unilateral leg force", "unilateral ground contact",
+              "friction cone", "friction cone", "ZMP inside the foot", "ZMP inside the foot",
+              "flywheel torque", "flywheel torque", "knee torque", "knee torque–speed envelope")
+    return dict(zip(PATH_ROWS, limits))
+
+
 TASK_NAMES = {"flip encoding (thetadot*T_flight = ±2π − 2β)": "rotation",
               "apex height": "apex", "forward distance": "forward distance"}
 
@@ -122,20 +122,19 @@ TASK_NAMES = {"flip encoding (thetadot*T_flight = ±2π − 2β)": "rotation",
 def unreachable_message(err, p: F.FSLIPParams):
     """(message, limit) of a :class:`fslip_planner.jumping.TaskUnreachable`: what the closest plan
     within every limit reaches, and the limits that hold it there (by multiplier share)."""
-    import math as _m
+    limit_of = _limit_names()
     parts = []
     for k, v in err.residuals.items():
-        name = TASK_NAMES.get(k, k)
-        if k.startswith("flip"):
-            if abs(v) >= 1e-4:
-                parts.append(f"the rotation it leaves for the flight is off by {_m.degrees(v):+.1f}°")
-        elif abs(v) >= 1e-4:
-            parts.append(f"{name} {abs(v):.3f} m {'beyond' if v > 0 else 'short of'} the request")
-    binding = [(n, s, w) for n, s, w in err.binding]
-    named = ", ".join(f"{LIMIT_OF.get(n, n)} ({100 * s:.0f} %"
+        if abs(v) < 1e-4:
+            continue
+        if TASK_NAMES[k] == "rotation":
+            parts.append(f"the rotation it leaves for the flight is off by {math.degrees(v):+.1f}°")
+        else:
+            parts.append(f"{TASK_NAMES[k]} {abs(v):.3f} m {'beyond' if v > 0 else 'short of'} the request")
+    named = ", ".join(f"{limit_of.get(n, n)} ({100 * s:.0f} %"
                       + (f", {w[0]:.2f}–{w[1]:.2f} s into the push" if w else "") + ")"
-                      for n, s, w in binding[:3])
-    top = next((LIMIT_OF.get(n, n) for n, _, _ in binding), "unknown")
+                      for n, s, w in err.binding[:3])
+    top = next((limit_of.get(n, n) for n, _, _ in err.binding), "unknown")
     return (f"beyond the robot's limits: the closest plan within them has "
             f"{'; '.join(parts) or 'task residuals below 1e-4'}; binding: {named}", top)
 

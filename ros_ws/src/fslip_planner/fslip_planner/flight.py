@@ -167,34 +167,36 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     return dict(t=t, theta=np.array(th), L=np.array(L), T=T, T1=T1, theta_T=theta_T)
 
 
-def max_body_turn(h0, T, inertia, tau_max, n=400):
+def max_body_turn(h0, t, inertia, tau_max):
     """Largest rotation (rad, in the direction of ``h0``'s sign convention: positive) that the body
-    without the flywheel can make in a flight of ``T`` s and end at rest, when only the flywheel
-    motor (|torque| ≤ ``tau_max``) changes its momentum (momentum transmission, eq. momentumTrans).
+    without the flywheel can make in a flight sampled at ``t`` (from 0 to T) and end at rest, when
+    only the flywheel motor (|torque| ≤ ``tau_max``) changes its momentum (momentum transmission,
+    eq. momentumTrans).
 
     The body's own pitch momentum h = I_rest(t) ω̄ starts at ``h0`` (the lift-off rate times the
-    lift-off inertia) and must end at 0; |ḣ| ≤ τ_max, and ω̄ = h / I_rest(t) with ``inertia(t)``
-    the body's inertia along the planned tuck.  The most rotation comes from the bang-bang momentum
-    h(t) = min(h0 + τ t, τ (T − t)) (clipped at 0 from below), integrated over the flight."""
-    t = np.linspace(0.0, T, n)
-    h = np.minimum(h0 + tau_max * t, tau_max * (T - t))
-    w = h / inertia(t)
+    lift-off inertia) and must end at 0; |ḣ| ≤ τ_max, and ω̄ = h / I_rest(t) with ``inertia`` the
+    body's inertia at ``t`` along the planned tuck.  The most rotation comes from the bang-bang
+    momentum h(t) = min(h0 + τ t, τ (T − t)), integrated over the flight."""
+    h = np.minimum(h0 + tau_max * t, tau_max * (t[-1] - t))
+    w = h / inertia
     return float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(t)))
 
 
-def flight_torque_needed(turn, omega0, T, inertia, tau_hi=1e4):
+def flight_torque_needed(turn, omega0, T, inertia, tau_hi=1e4, n=400):
     """Least flywheel torque (N·m) that turns the body by ``turn`` rad (sign = direction) in a flight
     of ``T`` s from the lift-off rate ``omega0`` and brings it to rest (:func:`max_body_turn`
-    bisected on the torque); ``inf`` where even ``tau_hi`` cannot (a flight too short)."""
-    s = 1.0 if turn >= 0 else -1.0
-    h0 = s * omega0 * float(inertia(np.array([0.0]))[0])
+    bisected on the torque, ``inertia(t)`` sampled once at ``n`` times); ``inf`` where even
+    ``tau_hi`` cannot (a flight too short)."""
+    t = np.linspace(0.0, T, n)
+    I = inertia(t)
+    h0 = (1.0 if turn >= 0 else -1.0) * omega0 * float(I[0])
     D = abs(turn)
-    if max_body_turn(h0, T, inertia, tau_hi) < D:
+    if max_body_turn(h0, t, I, tau_hi) < D:
         return math.inf
     lo, hi = 0.0, tau_hi
     for _ in range(50):
         m = 0.5 * (lo + hi)
-        if max_body_turn(h0, T, inertia, m) >= D:
+        if max_body_turn(h0, t, I, m) >= D:
             hi = m
         else:
             lo = m

@@ -191,23 +191,22 @@ def add_rate_limits(opti, U, dt, p, limits=RATE_LIMITS, named=None):
 
 
 def _variables(opti, p, N):
-    """(X, U, Us, T): states and controls as O(1) decision variables (H in units of
-    :data:`H_SCALE`; F^s of m g, τ and u of :data:`U_SCALE`)."""
+    """(X, U, Us, T): states and controls as O(1) decision variables (in :data:`VAR_SCALE` and
+    :func:`control_scale` units)."""
     import casadi as ca
-    Xs = opti.variable(5, N)
-    X = ca.diag(ca.DM([1.0, 1.0, 1.0, 1.0, H_SCALE])) @ Xs
+    X = ca.diag(ca.DM(VAR_SCALE)) @ opti.variable(5, N)
     Us = opti.variable(3, N)
-    U = ca.diag(control_scale(p)) @ Us
-    return X, U, Us, opti.variable(), Xs
+    U = ca.diag(ca.DM(control_scale(p))) @ Us
+    return X, U, Us, opti.variable()
 
 
 def control_scale(p):
     """Units of the controls (F^s in m g, τ and u in :data:`U_SCALE`)."""
-    import casadi as ca
-    return ca.DM([p.m * p.g, U_SCALE[1], U_SCALE[2]])
+    return np.array([p.m * p.g, U_SCALE[1], U_SCALE[2]])
 
 
 H_SCALE = 10.0   # kg·m²/s, unit of the momentum decision variable
+VAR_SCALE = (1.0, 1.0, 1.0, 1.0, H_SCALE)   # units of the state decision variables
 #: units of the task rows (flip encoding rad, apex m, distance m) in the elastic problem
 TASK_UNITS = (0.01, 0.01, 0.01)
 #: L1 penalty per unit of task residual: well above the task rows' multipliers at an optimum (the
@@ -233,8 +232,8 @@ class JumpingProblem:
         self.Xv = opti.variable(5, N - 1)                 # knots 1..N-1, H in H_SCALE units
         self.Usv = opti.variable(3, N - 2)                # knots 1..N-2, scaled controls
         self.T = T = opti.variable()
-        X = ca.horzcat(ca.DM(self.X0), ca.diag(ca.DM([1.0, 1.0, 1.0, 1.0, H_SCALE])) @ self.Xv)
-        U = ca.horzcat(ca.DM(self.U0), ca.diag(control_scale(p)) @ self.Usv, ca.DM.zeros(3, 1))
+        X = ca.horzcat(ca.DM(self.X0), ca.diag(ca.DM(VAR_SCALE)) @ self.Xv)
+        U = ca.horzcat(ca.DM(self.U0), ca.diag(ca.DM(control_scale(p))) @ self.Usv, ca.DM.zeros(3, 1))
         self.X, self.U = X, U
         self.P = opti.parameter(4)          # sign, apex, distance, platform
         sign, apex, dist, plat = (self.P[i] for i in range(4))
@@ -297,7 +296,7 @@ class JumpingProblem:
         # most of a forward distance comes from leaning (x at lift-off), the rest from ẋ
         xg = 0.4 * task.distance * s ** 2
         H_g = task.sign * 2 * math.pi * float(p.I(p.L_max)) / Tf_g
-        Xg = np.vstack([xg, zg, np.gradient(xg, s * Tg), zdg, H_g * s / H_SCALE])
+        Xg = np.vstack([xg, zg, np.gradient(xg, s * Tg), zdg, H_g * s]) / np.array(VAR_SCALE)[:, None]
         opti.set_initial(self.Xv, Xg[:, 1:])
         Ug = np.vstack([(1.5 - s), H_g / Tg / U_SCALE[1] * np.ones(N), np.zeros(N)])
         opti.set_initial(self.Usv, Ug[:, 1:N - 1])
@@ -313,11 +312,8 @@ class JumpingProblem:
         opti.set_value(self.P, [task.sign, task.apex, task.distance, task.platform])
         self._guess(task)
         if start is not None:
-            Xs = start.X.T.copy()
-            Xs[4] /= H_SCALE
-            opti.set_initial(self.Xv, Xs[:, 1:])
-            cs = np.array([self.p.m * self.p.g, U_SCALE[1], U_SCALE[2]])
-            opti.set_initial(self.Usv, start.U.T[:, 1:-1] / cs[:, None])
+            opti.set_initial(self.Xv, start.X.T[:, 1:] / np.array(VAR_SCALE)[:, None])
+            opti.set_initial(self.Usv, start.U.T[:, 1:-1] / control_scale(self.p)[:, None])
             opti.set_initial(self.T, start.T)
         try:
             sol = opti.solve()

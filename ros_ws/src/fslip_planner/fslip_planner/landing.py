@@ -40,7 +40,7 @@ class LandingProblem:
         import casadi as ca
         self.p, self.N = p, N
         opti = ca.Opti()
-        X, U, Us, T, _ = Jm._variables(opti, p, N)
+        X, U, Us, T = Jm._variables(opti, p, N)
         self.X, self.U, self.Us, self.T = X, U, Us, T
         self.X0 = opti.parameter(5)
         Xs, Ust = F.static_state(p, L_stand)
@@ -72,7 +72,7 @@ class LandingProblem:
         s = np.linspace(0, 1, self.N)
         w = 3 * s ** 2 - 2 * s ** 3
         Xg = np.outer(1 - w, x0) + np.outer(w, self.X_stand)
-        Xg[:, 4] /= Jm.H_SCALE
+        Xg /= np.array(Jm.VAR_SCALE)
         Usg = np.vstack([1.0 + 0.5 * np.sin(np.pi * s), np.zeros((2, self.N))])
         # decision vector order = order of creation in _variables: X, Us, T
         return np.r_[Xg.ravel(), Usg.T.ravel(), 0.7]
