@@ -82,6 +82,7 @@ def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
                                 "flywheel_torque:=260.0"], node_name="planner_node")
     ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
     tn = ros_graph.test_node
+    publish_odom(tn)                                  # the robot stands at its start
     R = RequestFlip.Request
     bad = {"NaN apex": R(kind=R.BACKFLIP, apex_height=float("nan")),
            "negative apex": R(kind=R.FRONTFLIP, apex_height=-0.1),
@@ -99,6 +100,54 @@ def test_request_flip_rejects_invalid_and_keeps_serving(ros_graph):
     # a second request while that flip is under way is refused cleanly
     again = tn.call(RequestFlip, "/request_flip", R(kind=R.FRONTFLIP))
     assert not again.accepted and "under way" in again.reason
+
+
+def publish_odom(tn, x=0.0, z=None, pitch=0.0) -> dict:
+    """/odom of a pelvis at (x, z) pitched by ``pitch``, at rest, published every 5 ms by the test
+    node while it spins (e.g. waiting for a service's answer); z None: the standing pose's height.
+    Returns the pose, which the caller may change."""
+    from fslip_planner.plan import _Robot
+    from nav_msgs.msg import Odometry
+    pose = {"x": x, "z": float(_Robot.get("I").pelvis0[2]) if z is None else z, "pitch": pitch}
+    pub = tn.node.create_publisher(Odometry, "/odom", BEST_EFFORT)
+
+    def publish():
+        m = Odometry()
+        m.pose.pose.position.x, m.pose.pose.position.z = pose["x"], pose["z"]
+        m.pose.pose.orientation.y, m.pose.pose.orientation.w = math.sin(pose["pitch"] / 2), math.cos(pose["pitch"] / 2)
+        pub.publish(m)
+    tn.node.create_timer(0.005, publish)
+    return pose
+
+
+def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
+    """The real planner_node reads the newest /odom at each request: none -> refused (no_state), a
+    fallen pelvis -> refused (not_standing), standing 0.16 m ahead of the start -> a JUMPING
+    reference whose COM targets start there (issue 26, items 1 and 5)."""
+    from fslip_planner.plan import _Robot
+    planner = str(Path(sys.executable).parent / "planner_node")
+    ros_graph.start("planner", [planner, "--ros-args", "-p", "motor_speed_scale:=3.0", "-p",
+                                "flywheel_torque:=260.0"], node_name="planner_node")
+    ros_graph.wait_ready(nodes=["planner_node"], services=["/request_flip"])
+    tn = ros_graph.test_node
+    R = RequestFlip.Request
+    none = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=60)
+    assert not none.accepted and none.reason.startswith("no_state:"), none.reason
+
+    robot = _Robot.get("I", 3.0, 260.0)
+    pose = publish_odom(tn, x=0.0, z=0.25, pitch=math.radians(88))      # lying on its back
+    refs = tn.collect(FlipReference, "/fslip/reference", latched(5))
+    fallen = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=60)
+    assert not fallen.accepted and fallen.reason.startswith("not_standing:"), fallen.reason
+    assert "tilted 88.0 deg" in fallen.reason
+
+    pose.update(x=0.16, z=float(robot.pelvis0[2]), pitch=0.0)
+    ok = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=120)
+    assert ok.accepted, ok.reason
+    tn.spin_until(lambda: refs, what="the JUMPING reference")
+    ref = refs[-1]
+    x_com = np.asarray(ref.value).reshape(len(ref.t), len(ref.output_names))[:, ref.output_names.index("x_com")]
+    assert x_com[0] == pytest.approx(0.16 + robot.com_in_pelvis[0], abs=1e-9)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -268,3 +268,52 @@ def test_flight_pitch_profile_search_equals_the_scalar_scan():
             # the cruise phase's rate is w exactly
             assert w in set(prof[1].tolist())
     assert 50 < found < 350
+
+
+# ---------------------------------------------------------------------------------------------
+# every plan starts from the measured state (issue 26, items 1 and 5)
+def _pelvis(robot, x=0.0, ground=0.0, dz=0.0, pitch=0.0, v=(0.0, 0.0, 0.0), w=(0.0, 0.0, 0.0)):
+    """The pelvis as /odom gives it for a robot standing at x on the ground at z = ``ground``."""
+    return P.PelvisState(3.0, np.array([x, 0.0, ground + robot.pelvis0[2] + dz]),
+                         np.array([0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)]),
+                         np.array(v, float), np.array(w, float))
+
+
+def test_a_plan_starts_where_the_robot_stands():
+    """A robot that stands 0.16 m ahead of its start (where a backflip landed) gets a jump whose COM
+    targets are those of the same plan from the start, moved by the same 0.16 m: its forward target
+    is relative to where it stands, not to where the robot was at the start."""
+    at_start = P.FlipSession("backflip", **FLIP)
+    ref0 = at_start.jumping_reference()
+    ahead = P.FlipSession("backflip", **FLIP)
+    robot = ahead.robot
+    ref1 = ahead.jumping_reference(_pelvis(robot, x=0.16, ground=FLIP["platform_height"]))
+    x0, _, _ = ref0.column("x_com")
+    x1, _, _ = ref1.column("x_com")
+    # the COM of the standing pose, carried by the measured pelvis
+    assert x1[0] == pytest.approx(0.16 + robot.com_in_pelvis[0], abs=1e-12)
+    assert x0[0] == pytest.approx(robot.com0[0], abs=1e-12)
+    assert np.allclose(x1 - x0, 0.16, atol=1e-9)
+    for name in ("H_pitch", "L", "phi_pitch"):
+        assert np.array_equal(ref1.column(name)[0], ref0.column(name)[0])
+
+
+@pytest.mark.parametrize("what, kw, words", [
+    ("lying", dict(dz=-0.8, pitch=math.radians(90)), "tilted 90.0 deg"),
+    ("leaning", dict(pitch=math.radians(15)), "tilted 15.0 deg"),
+    ("sunk", dict(dz=-0.2), "above the take-off ground"),
+    ("moving", dict(v=(0.5, 0.0, 0.0)), "moving at 0.50 m/s"),
+    ("turning", dict(w=(0.0, 1.0, 0.0)), "turning at 1.00 rad/s"),
+    ("off its platform", dict(ground=0.0), "above the take-off ground at z = 0.5 m"),
+])
+def test_a_robot_that_does_not_stand_is_refused(what, kw, words):
+    s = P.FlipSession("backflip", **FLIP)
+    kw = {"ground": FLIP["platform_height"], **kw}
+    with pytest.raises(P.InfeasibleRequest) as e:
+        s.jumping_reference(_pelvis(s.robot, **kw))
+    assert e.value.limit == "not_standing" and str(e.value).startswith("not_standing:"), what
+    assert words in str(e.value), str(e.value)
+    assert s.result is None                       # refused before any optimisation
+    # the same session plans once the robot stands
+    ok = s.jumping_reference(_pelvis(s.robot, ground=FLIP["platform_height"]))
+    assert ok.column("x_com")[0][0] == pytest.approx(s.robot.com_in_pelvis[0], abs=1e-12)

@@ -1,7 +1,9 @@
 """planner_node: the FSLIP planner as a ROS 2 node (thin adapter around ``fslip_planner.plan``).
 
-- ``/request_flip`` (flip_msgs/RequestFlip): validate → solve the jumping optimisation → publish the
-  JUMPING reference; an impossible or malformed request gets ``accepted=false`` and a reason.
+- ``/request_flip`` (flip_msgs/RequestFlip): validate → read the measured pelvis state (the newest
+  ``/odom``) → refuse unless the robot stands → solve the jumping optimisation from where it stands →
+  publish the JUMPING reference; an impossible or malformed request gets ``accepted=false`` and a
+  reason.
 - ``/contact_events`` LIFT_OFF → flight plan (momentum transmission) from the measured state;
   TOUCH_DOWN → landing optimisation from the measured post-impact state.
 Every reference goes out on ``/fslip/reference`` with its solve time.
@@ -10,6 +12,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 
 import numpy as np
 import rclpy
@@ -17,14 +20,17 @@ from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, n
 from cassie_flip_sim.node_stop import run_until_stopped
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
+from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 
-from .plan import FlipSession, InfeasibleRequest, MeasuredState
+from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
 
 KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP: 'frontflip',
          RequestFlip.Request.HOP: 'hop'}
 #: sim-time lead given to the controller between publishing a jumping plan and its start
 START_LEAD_S = 0.25
+#: wall seconds a request waits for the simulator's /odom (the measured state a plan starts from)
+STATE_TIMEOUT_S = 2.0
 
 
 def measured_state(ev):
@@ -39,6 +45,15 @@ def measured_state(ev):
         pelvis_pitch=pitch,
         pelvis_pitch_rate=ev.pelvis_twist.angular.y,
         support_center=np.array([ev.support_center.x, ev.support_center.y, ev.support_center.z]))
+
+
+def pelvis_state(odom):
+    """The pelvis of an /odom message as the planner's PelvisState."""
+    p, q = odom.pose.pose.position, odom.pose.pose.orientation
+    v, w = odom.twist.twist.linear, odom.twist.twist.angular
+    return PelvisState(t=stamp_to_ns(odom.header.stamp) * 1e-9, position=np.array([p.x, p.y, p.z]),
+                       orientation=np.array([q.x, q.y, q.z, q.w]), linear_velocity=np.array([v.x, v.y, v.z]),
+                       angular_velocity=np.array([w.x, w.y, w.z]))
 
 
 class PlannerNode:
@@ -64,6 +79,22 @@ class PlannerNode:
         if got:
             self._last_clock = stamp_to_ns(got[-1][1].clock) * 1e-9
         return getattr(self, '_last_clock', 0.0)
+
+    def _measured_pelvis(self):
+        """The newest /odom as a PelvisState, or None if none came within STATE_TIMEOUT_S. The
+        subscription lives for this request only: a standing one would take 2,000 messages a second
+        here and add a reader to every step of the simulator."""
+        sub = self._clock_node.create_subscription(Odometry, '/odom', lambda _m: None, STREAM_QOS)
+        try:
+            deadline = time.monotonic() + STATE_TIMEOUT_S
+            while time.monotonic() < deadline:
+                got = sub.handle.take_message(sub.msg_type, False)
+                if got is not None:
+                    return pelvis_state(got[0])
+                time.sleep(0.002)
+            return None
+        finally:
+            self._clock_node.destroy_subscription(sub)
 
     def _publish(self, ref, start_time):
         msg = FlipReference()
@@ -102,7 +133,12 @@ class PlannerNode:
                                   platform_height=req.platform_height or self.platform_height,
                                   flywheel=self.flywheel, motor_speed_scale=self.motor_speed_scale,
                                   flywheel_torque=self.flywheel_torque)
-            ref = session.jumping_reference()
+            # every plan starts from the measured state: refused unless the robot stands
+            state = self._measured_pelvis()
+            if state is None:
+                raise InfeasibleRequest(f'no_state: no /odom from the simulator within {STATE_TIMEOUT_S:g} s: '
+                                        'the state of the robot is unknown', 'no_state')
+            ref = session.jumping_reference(state)
         except (InfeasibleRequest, ValueError) as e:
             res.reason = str(e)
             self.node.get_logger().warn(f'request refused: {e}')
