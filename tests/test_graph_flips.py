@@ -11,10 +11,12 @@ process, lockstep), judged from the recorded bag: `scripts/flip run`.
 * The offline harness (tests/offline_flip.py) started at the backflip's start time reproduces it to
   the bit: every recorded command and pelvis position, and the contact events."""
 import json
+import signal
 import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
@@ -128,3 +130,77 @@ def test_frontflip_turns_once_and_touches_down_upright_through_the_graph(tmp_pat
     pitch = np.degrees(pitch_unwrapped(od["quat"]))
     k = np.searchsorted(od["t"], td[0])
     assert 345.0 < pitch[k] - pitch[0] < 375.0                     # one forward turn, upright at touch-down
+
+
+def test_a_second_flip_on_a_running_graph_starts_where_the_first_landed(ros_graph, tmp_path):
+    """`flip run backflip --duration` keeps the graph running; after the landing (the robot ~0.16 m
+    ahead of its start) `/request_flip` asks a second backflip, which the planner plans from the
+    measured state (issue 26, item 1: its push-off was pulled back to the start, and the body hit
+    the ground 0.73 s in): its JUMPING reference starts at the COM where the robot stands, and its
+    FLIGHT reference at the pitch the controller tracks (unwrapped since the start: one turn down
+    after a backflip), so the body turns backwards again. Whether the second backflip lands is not
+    asserted: it fell in the 2 runs made with both fixes (in one it turned 360 deg and came down on
+    a knee, the first landing having left the robot yawed 7 deg, off the plane the plan and the
+    flight assume)."""
+    from fslip_planner.plan import _Robot
+    from flip_msgs.msg import ContactEvent
+    from flip_msgs.srv import RequestFlip
+    from flip_tools.bag import load_bag
+    from flip_tools.summary import pitch_unwrapped
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+    out = tmp_path / "two"
+    p = subprocess.Popen([sys.executable, str(FLIP), "run", "backflip", *SOMERSAULT_ROBOT, "--duration", "24",
+                          "--domain", str(ros_graph.domain_id), "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        tn = ros_graph.test_node
+        evs = tn.collect(ContactEvent, "/contact_events",
+                         QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                    durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        clock = tn.collect(Clock, "/clock", QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+        def sim_t():
+            return clock[-1].clock.sec + 1e-9 * clock[-1].clock.nanosec if clock else 0.0
+
+        def touchdowns():
+            return [e.header.stamp.sec + 1e-9 * e.header.stamp.nanosec for e in evs
+                    if e.event == ContactEvent.TOUCH_DOWN]
+        # 5 s of sim time after the first touch-down: landed and at rest
+        tn.spin_until(lambda: touchdowns() and sim_t() > touchdowns()[0] + 5.0 or p.poll() is not None,
+                      timeout=600, what="the first backflip's landing")
+        assert p.poll() is None, p.communicate()[0]
+        R = RequestFlip.Request
+        second = tn.call(RequestFlip, "/request_flip", R(kind=R.BACKFLIP, apex_height=1.3), timeout=120)
+        assert second.accepted, second.reason
+        stdout, _ = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)              # flip stops its graph (exit 130)
+            p.wait(timeout=120)
+    data = load_bag(out / "bag", ["/odom", "/contact_events", "/fslip/reference"])
+    ce = data["/contact_events"]
+    names = {v: k for k, v in data.constants["flip_msgs/msg/ContactEvent"].items() if k in
+             ("LIFT_OFF", "TOUCH_DOWN", "BODY_CONTACT")}
+    kinds = [names.get(int(e)) for e in ce["event"]]
+    jumps = [r for r in data["/fslip/reference"]["refs"] if r["domain"] == 1]
+    assert [r["plan_id"] for r in jumps] == [1, 2], stdout
+    start2 = jumps[1]["start_time"]
+    od = data["/odom"]
+    # the second plan's COM targets begin at the standing COM where the robot stood when it was asked
+    k = np.searchsorted(od["t"], start2)
+    x_com = jumps[1]["value"][:, jumps[1]["output_names"].index("x_com")]
+    robot = _Robot.get("I", 3.0, 260.0)
+    assert abs(od["pos"][k, 0] - od["pos"][0, 0]) > 0.05              # the first flip moved the robot
+    assert x_com[0] == pytest.approx(od["pos"][k, 0] + robot.com_in_pelvis[0], abs=0.02)
+    # ... and its flight plan starts at the pitch the controller tracks, so the body turns backwards
+    pitch = np.degrees(pitch_unwrapped(od["quat"]))
+    t_ev = ce["t"]
+    lo2 = [t for t, n in zip(t_ev, kinds) if n == "LIFT_OFF" and t > start2]
+    assert lo2, list(zip(t_ev, kinds))
+    j = np.searchsorted(od["t"], lo2[0])
+    flight2 = [r for r in data["/fslip/reference"]["refs"] if r["domain"] == 2 and r["plan_id"] == 2][0]
+    phi0 = np.degrees(flight2["value"][0, flight2["output_names"].index("phi_pitch")])
+    assert phi0 == pytest.approx(pitch[j], abs=3.0) and phi0 < -300.0
+    j4 = np.searchsorted(od["t"], lo2[0] + 0.4)
+    assert pitch[j4] - pitch[j] < -250.0                              # a backward turn, not a forward one

@@ -73,6 +73,11 @@ class PlannerNode:
         self._clock = SubscriptionSet(self._clock_node, [(Clock, '/clock', STREAM_QOS)])
         self.session = None
         self.plan_id = 0
+        # 2*pi x the somersaults turned so far: the controller tracks a FLIGHT phi_pitch against its
+        # pelvis pitch unwrapped since the start (-2*pi after a backflip), the measured pitch here is
+        # wrapped; a second flip's flight plan turned the body the wrong way without this offset
+        self.pitch_turns = 0.0
+        self._flight_end_pitch = None
 
     def _sim_now(self):
         got = self._clock.take_all()
@@ -174,7 +179,16 @@ class PlannerNode:
             self.node.get_logger().error(f'replanning at contact event failed: {e}')
             return
         if ref is not None:
+            if ref.domain == FlipReference.DOMAIN_FLIGHT and 'phi_pitch' in ref.names:
+                ref.value[:, ref.names.index('phi_pitch')] += self.pitch_turns
+                self._flight_end_pitch = float(ref.value[-1, ref.names.index('phi_pitch')])
             self._publish(ref, state.t)
+        if ev.event == ContactEvent.TOUCH_DOWN and self._flight_end_pitch is not None:
+            # the unwrapped pitch at touch-down: the measured one, plus the whole turns that bring it
+            # nearest to where the flight plan ended
+            k = round((self._flight_end_pitch - state.pelvis_pitch) / (2 * math.pi))
+            self.pitch_turns = 2 * math.pi * k
+            self._flight_end_pitch = None
 
 
 def main(args=None):
