@@ -18,6 +18,10 @@ Per type (others: {"t_log", "msgs"} with the deserialised messages):
                                 output_names, value (n,k), d_value, dd_value, parameters{}, figures)
   std_msgs/msg/String           t_log, data: list[str]
 
+A bag without metadata.yaml (its recorder was killed: no MCAP summary or index either) is
+recovered first (``recover_bag``): every complete chunk of its MCAP file is read as a streaming
+reader reads it, and the bag is rewritten with its index and metadata.yaml.
+
 Clock, Odometry, JointState and MotorCommand (the lockstep's tens of thousands of messages a run)
 are read from their bytes at once when every message of the topic has the layout of the first
 (cassie_flip_sim.cdr: the same size, strings and sequence lengths), and the result is checked
@@ -57,6 +61,7 @@ class BagData:
     constants: dict[str, dict] = field(default_factory=dict)   # msgtype -> {NAME: value}
     start_ns: int | None = None
     end_ns: int | None = None
+    recovered: dict | None = None     # what recover_bag kept, when this bag had to be recovered
 
     def __getitem__(self, topic: str) -> dict:
         return self.arrays[topic]
@@ -110,7 +115,8 @@ def constants(msgtype: str, store=None) -> dict[str, int]:
 
 def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
     path = Path(path)
-    data = BagData(path)
+    recovered = None if (path / "metadata.yaml").exists() else recover_bag(path)
+    data = BagData(path, recovered=recovered)      # (recovered: a killed recorder's bag, rewritten)
     raw: dict[str, tuple[str, list, list]] = {}        # topic -> (msgtype, log times ns, serialized)
     with Reader(path) as reader:
         data.start_ns, data.end_ns = reader.start_time, reader.end_time
@@ -327,3 +333,149 @@ _CONVERTERS = {
     "flip_msgs/msg/FlipReference": _flip_reference,
     "std_msgs/msg/String": _string,
 }
+
+
+# ------------------------------------------------------------------------------- recovery
+_MAGIC = b"\x89MCAP0\r\n"
+_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END, _OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
+
+
+def _records(buf: bytes, start: int, end: int):
+    """(opcode, content start, content end) of the whole records in buf[start:end]; a record cut
+    short (a file truncated mid-write) ends the walk."""
+    i = start
+    while i + 9 <= end:
+        op, n = buf[i], int.from_bytes(buf[i + 1:i + 9], "little")
+        if i + 9 + n > end:
+            return
+        yield op, i + 9, i + 9 + n
+        i += 9 + n
+
+
+def _string(buf: bytes, i: int) -> tuple[str, int]:
+    n = int.from_bytes(buf[i:i + 4], "little")
+    return buf[i + 4:i + 4 + n].decode(), i + 4 + n
+
+
+def scan_mcap(path: str | Path) -> dict:
+    """Schemas, channels and messages of an MCAP file read front to back, as a streaming reader
+    does (no summary or index needed): every whole record, chunks decompressed; a truncated or
+    undecodable tail is left out. Returns {"schemas": {id: (name, encoding, data)}, "channels":
+    {id: (topic, schema id, message encoding, metadata bytes)}, "messages": [(channel id, log time,
+    data)], "bytes_read": offset of the end of the last whole record, "size": file size}."""
+    from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
+    buf = Path(path).read_bytes()
+    out = {"schemas": {}, "channels": {}, "messages": [], "bytes_read": 0, "size": len(buf)}
+    if not buf.startswith(_MAGIC):
+        return out
+
+    def content(b, start, end, top):
+        for op, i, j in _records(b, start, end):
+            if op == _OP_SCHEMA:
+                sid = int.from_bytes(b[i:i + 2], "little")
+                name, k = _string(b, i + 2)
+                enc, k = _string(b, k)
+                n = int.from_bytes(b[k:k + 4], "little")
+                out["schemas"][sid] = (name, enc, b[k + 4:k + 4 + n].decode())
+            elif op == _OP_CHANNEL:
+                cid, sid = int.from_bytes(b[i:i + 2], "little"), int.from_bytes(b[i + 2:i + 4], "little")
+                topic, k = _string(b, i + 4)
+                enc, k = _string(b, k)
+                n = int.from_bytes(b[k:k + 4], "little")
+                out["channels"][cid] = (topic, sid, enc, b[k + 4:k + 4 + n])
+            elif op == _OP_MESSAGE:
+                cid, t = int.from_bytes(b[i:i + 2], "little"), int.from_bytes(b[i + 6:i + 14], "little")
+                out["messages"].append((cid, t, b[i + 22:j]))
+            elif op == _OP_CHUNK and top:
+                size = int.from_bytes(b[i + 16:i + 24], "little")
+                comp, k = _string(b, i + 28)
+                n = int.from_bytes(b[k:k + 8], "little")
+                try:
+                    raw = DECOMPRESSORS[comp](b[k + 8:k + 8 + n], size)
+                except Exception:  # noqa: BLE001 - a chunk that does not decompress ends the bag
+                    return False
+                if len(raw) != size:
+                    return False
+                content(raw, 0, size, False)
+            elif op in (_OP_DATA_END, _OP_FOOTER) and top:
+                out["bytes_read"] = len(b)            # the data section is whole: nothing cut off
+                return False
+            if top:
+                out["bytes_read"] = j
+        return True
+    content(buf, len(_MAGIC), len(buf), True)
+    return out
+
+
+def recover_bag(path: str | Path) -> dict | None:
+    """Rewrite a bag that has no metadata.yaml (its recorder died) from what its MCAP file holds
+    (``scan_mcap``: every whole chunk), with a summary, index and metadata.yaml, zstd-compressed as
+    the recorder writes; the unindexed file is replaced. Returns what was kept: {"messages",
+    "topics": {topic: count}, "bytes_kept", "bytes_dropped", "log_time_s": [first, last]}, or None
+    when there is nothing to recover (a bag with metadata.yaml, or no MCAP file)."""
+    import shutil
+
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+    from rosbags.rosbag2.storage_mcap import get_qos
+    from rosbags.typesys import Stores, get_typestore
+    path = Path(path)
+    if (path / "metadata.yaml").exists():
+        return None
+    files = sorted(path.glob("*.mcap"))
+    if not files:
+        return None
+    scans = [scan_mcap(f) for f in files]
+    # written beside the bag under the bag's own name, then moved into it, metadata.yaml last
+    tmp_root = path.with_name(path.name + ".recovering")
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    tmp_root.mkdir()
+    tmp = tmp_root / path.name
+    writer = Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    writer.open()
+    store = get_typestore(Stores.ROS2_JAZZY)
+    fallback = flip_typestore()
+    topics: dict[str, int] = {}
+    times = []
+    added = {}
+    try:
+        for scan in scans:
+            conns = {}
+            for cid, (topic, sid, enc, meta) in scan["channels"].items():
+                name, _fmt, text = scan["schemas"].get(sid, ("", "", ""))
+                if (topic, name, enc, meta) in added:
+                    conns[cid] = added[(topic, name, enc, meta)]
+                    continue
+                try:
+                    if name not in store.fielddefs:
+                        store.register(get_types_from_msg(text, name))
+                    rihs01 = store.hash_rihs01(name)
+                except Exception:  # noqa: BLE001 - a definition rosbags cannot parse: the source tree's
+                    rihs01 = fallback.hash_rihs01(name) if name in fallback.fielddefs else "RIHS01_" + "0" * 64
+                conns[cid] = writer.add_connection(topic, name, msgdef=text, rihs01=rihs01,
+                                                   serialization_format=enc or "cdr",
+                                                   offered_qos_profiles=get_qos(meta))
+                added[(topic, name, enc, meta)] = conns[cid]
+            for cid, t, msg in scan["messages"]:
+                if cid in conns:
+                    writer.write(conns[cid], t, msg)
+                    topics[conns[cid].topic] = topics.get(conns[cid].topic, 0) + 1
+                    times.append(t)
+        writer.close()
+    except BaseException:
+        writer.abort()
+        shutil.rmtree(tmp_root, ignore_errors=True)
+        raise
+    # the rewritten file replaces the unindexed one of its name (the others go), metadata.yaml last
+    new = sorted(tmp.glob("*.mcap"))
+    for f in new:
+        f.replace(path / f.name)
+    for f in files:
+        if f.name not in {g.name for g in new}:
+            f.unlink()
+    (tmp / "metadata.yaml").replace(path / "metadata.yaml")
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    kept = sum(s["bytes_read"] for s in scans)
+    return {"messages": sum(topics.values()), "topics": topics, "bytes_kept": kept,
+            "bytes_dropped": sum(s["size"] for s in scans) - kept,
+            "log_time_s": [min(times) * 1e-9, max(times) * 1e-9] if times else None}

@@ -20,19 +20,24 @@
   second; an orchestrator waits on "matched" before it starts the experiment (another process
   seeing both endpoints does not mean they have matched), and on "last_clock_ns" before it stops
   the recorder.
+- The MCAP chunks are zstd-compressed (``FLIP_BAG_COMPRESSION=none``: uncompressed), as `ros2 bag
+  record -s mcap` writes them, and each goes to the file whole when it is closed (at 1 MiB, or
+  CHUNK_MAX_S after its first message): a recorder killed mid-run leaves every closed chunk
+  readable front to back, and flip_tools.bag.recover_bag rebuilds the index and metadata.yaml.
 - SIGINT/SIGTERM, or `duration`, ends the recording; the bag is closed, counts are printed as one
   JSON line `{"recorded": {...}}` on stdout.
 """
 from __future__ import annotations
 
 import json
+import os
 import signal
 import struct
 import time
 from pathlib import Path
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
 from .rosenv import CONTRACT_TOPICS, message_class
 from .typestore import flip_typestore
@@ -43,6 +48,7 @@ EXCLUDE = {"/parameter_events"}
 POLL_S = 0.01          # main loop period: take what is queued, write it
 DISCOVER_S = 0.2       # period of the graph poll for new topics
 STATUS_S = 0.5         # period of /<node>/status
+CHUNK_MAX_S = 1.0      # a chunk with messages goes to the file this long after it was begun, at the latest
 _CLOCK_STAMP = struct.Struct("<iI")   # rosgraph_msgs/Clock's time, after the 4-byte CDR header
 
 
@@ -63,7 +69,7 @@ class Recorder:
     """Subscriptions of one node (never spun by an executor) written to a bag by ``take_all``."""
 
     def __init__(self, node, bag_dir: str | Path, topics: list[str] | None = None,
-                 all_topics: bool = False, types: dict[str, str] | None = None):
+                 all_topics: bool = False, types: dict[str, str] | None = None, compression: str = "zstd"):
         self.node = node
         self.bag_dir = Path(bag_dir)
         self.want = list(topics or [])
@@ -71,7 +77,14 @@ class Recorder:
         self.types = dict(types or {})
         self.typestore = flip_typestore()
         self.writer = Writer(self.bag_dir, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.compression = compression
+        if compression == "zstd":
+            self.writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        elif compression != "none":
+            raise ValueError(f"bag compression must be 'zstd' or 'none', not {compression!r}")
         self.writer.open()
+        self._flush_closed_chunks()
+        self._chunk_begun = None
         self.conns: dict[str, object] = {}
         self.subs: dict[str, object] = {}
         self.counts: dict[str, int] = {}
@@ -84,6 +97,30 @@ class Recorder:
         self.status_topic = node.get_fully_qualified_name() + "/status"
         self._status_pub = node.create_publisher(String, self.status_topic, 10)
         self.discover()
+
+    def _flush_closed_chunks(self) -> None:
+        """Every chunk rosbags' MCAP writer closes goes to the file at once (not left in the file
+        object's buffer), so that what a killed recorder leaves ends with whole chunks."""
+        storage = self.writer.storage
+        close_chunk = storage.close_chunk
+
+        def close_and_flush():
+            close_chunk()
+            storage.bio.flush()
+        storage.close_chunk = close_and_flush
+        storage.bio.flush()                   # the MCAP magic and header
+
+    def close_old_chunk(self, now: float) -> None:
+        """Close the pending chunk once CHUNK_MAX_S have passed since its first message (at a low
+        rate a 1 MiB chunk would hold minutes that a killed recorder loses)."""
+        storage = self.writer.storage
+        if storage is None or not storage.chunk.msgs:
+            self._chunk_begun = None
+        elif self._chunk_begun is None:
+            self._chunk_begun = now
+        elif now - self._chunk_begun >= CHUNK_MAX_S:
+            storage.close_chunk()
+            self._chunk_begun = None
 
     def publish_status(self) -> None:
         if not self.closed:
@@ -212,13 +249,14 @@ def record(bag_dir: str | Path, topics: list[str] | None = None, all_topics: boo
     signal.signal(signal.SIGINT, _on_signal)
     signal.signal(signal.SIGTERM, _on_signal)
     node = rclpy.create_node(node_name, start_parameter_services=False)
-    rec = Recorder(node, bag_dir, topics, all_topics)
+    rec = Recorder(node, bag_dir, topics, all_topics, compression=os.environ.get("FLIP_BAG_COMPRESSION", "zstd"))
     t0 = time.monotonic()
     next_discover = next_status = t0
     try:
         while not stop["flag"] and (duration is None or time.monotonic() - t0 < duration):
             rec.take_all()
             now = time.monotonic()
+            rec.close_old_chunk(now)
             if now >= next_discover:
                 rec.discover()
                 next_discover = now + DISCOVER_S

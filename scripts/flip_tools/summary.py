@@ -28,6 +28,8 @@ the end but another body touched the ground) | off_landing_ground (upright, but 
 elsewhere than on the landing ground) | under_rotated | over_rotated (upright, rotation
 off) | not_at_rest (upright, rotation right, still moving) | no_data (no /odom).
 For `stand`/`sim` runs: standing | fell.
+A bag whose recorder died (no metadata.yaml) is recovered by the bag reader; ``bag_recovered`` says
+what it kept.
 
 Lift-off and touch-down states (``liftoff_state``, ``touchdown_state``; diagnostics, not verdicts):
 the pelvis at the first lift-off and the touch-down after it (the /odom sample at or just after the
@@ -126,6 +128,8 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     s: dict = {"bag": str(data.path), "kind": kind,
                "topics": {t: d["count"] for t, d in sorted(data.topics.items())},
                "landing_ground_z_m": landing_ground_z, "criteria": dict(LANDING_CRITERIA)}
+    if data.recovered is not None:
+        s["bag_recovered"] = data.recovered       # its recorder died: what the bag kept
     notes: list[str] = []
     if data.start_ns is not None and data.end_ns is not None and data.end_ns >= data.start_ns:
         s["wall_time_s"] = _f((data.end_ns - data.start_ns) * 1e-9, 3)
