@@ -36,7 +36,7 @@ def test_a_refused_argument_leaves_the_output_folder_as_it_was(tmp_path, args, m
     out = tmp_path / "copy"
     before = a_previous_run(out)
     r = flip(*args, "--out", str(out))
-    assert r.returncode != 0 and message in r.stderr + r.stdout, r.stderr
+    assert r.returncode == 2 and message in r.stderr + r.stdout, r.stderr      # usage error
     assert "Traceback" not in r.stderr
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
 
@@ -46,7 +46,7 @@ def test_a_folder_that_is_no_run_of_flip_is_refused_and_kept(tmp_path):
     out.mkdir()
     (out / "thesis.tex").write_text("months of work")
     r = flip("stand", "--duration", "0.1", "--out", str(out))
-    assert r.returncode != 0 and "not a previous run" in r.stderr, r.stderr
+    assert r.returncode == 2 and "not a previous run" in r.stderr, r.stderr
     assert (out / "thesis.tex").read_text() == "months of work" and len(list(out.iterdir())) == 1
 
 
@@ -54,4 +54,53 @@ def test_an_unwritable_out_is_an_error_not_a_traceback(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     r = flip("stand", "--duration", "0.1", "--out", str(blocker / "sub"))
-    assert r.returncode != 0 and "--out" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert r.returncode == 2 and "--out" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# exit codes: one per meaning, as README's table says (issue 26, item 6)
+def readme_exit_codes() -> dict[int, str]:
+    """The exit-code table of README's `flip` section: {code: meaning}."""
+    text = (FLIP.parents[1] / "README.md").read_text()
+    table = text[text.index("| exit code |"):].split("\n\n")[0]
+    rows = [r.split("|")[1:3] for r in table.splitlines()[2:]]
+    return {int(code.strip().strip("`")): meaning.strip() for code, meaning in rows}
+
+
+def test_exit_codes_are_distinct_and_documented():
+    import importlib.machinery
+    import importlib.util
+    loader = importlib.machinery.SourceFileLoader("flip_script", str(FLIP))
+    spec = importlib.util.spec_from_loader("flip_script", loader)
+    mod = importlib.util.module_from_spec(spec)
+    loader.exec_module(mod)
+    codes = {k: getattr(mod, k) for k in dir(mod) if k.startswith("EXIT_")}
+    assert len(set(codes.values())) == len(codes), codes
+    assert codes["EXIT_USAGE"] == 2                      # argparse's own
+    assert sorted(readme_exit_codes()) == sorted(codes.values())
+    doc = readme_exit_codes()
+    for name, words in (("EXIT_OK", "landed"), ("EXIT_NOT_LANDED", "did not land"), ("EXIT_USAGE", "argument"),
+                        ("EXIT_INFRA", "infrastructure"), ("EXIT_REJECTED", "rejected"),
+                        ("EXIT_INTERRUPTED", "interrupted")):
+        assert words in doc[codes[name]], (name, doc)
+
+
+def test_usage_rejected_and_not_landed_exit_differently(tmp_path):
+    """2: a refused argument (argparse's, or one flip checks itself); 4: a request the planner
+    refuses (`flip plan`, no ROS); 1: a run whose bag shows no landing (`flip summarize`); 0: landed."""
+    assert flip("plan", "backflip", "--apex", "oops", "--out", str(tmp_path / "p")).returncode == 2
+    assert flip("run", "backflip", "--platform", "0.5", "--ground-offset", "0.1").returncode == 2
+    r = flip("plan", "backflip", "--apex", "6", "--out", str(tmp_path / "p"))
+    assert r.returncode == 4 and "apex" in r.stderr, r.stderr
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "fell" / "bag", rotation_deg=360.0, final_z=0.3, final_tilt_deg=80.0)
+    write_flip_bag(tmp_path / "landed" / "bag", rotation_deg=360.0, final_z=0.9)
+    assert flip("summarize", str(tmp_path / "fell"), "--kind", "frontflip").returncode == 1
+    assert flip("summarize", str(tmp_path / "landed"), "--kind", "frontflip").returncode == 0
+
+
+def test_infrastructure_failure_exits_3(tmp_path):
+    """A node that dies before the graph is ready: exit 3, not a verdict on the flip."""
+    r = flip("run", "hop", "--out", str(tmp_path / "run"), "--ready-timeout", "60",
+             "--exe", f"sim={sys.executable} -c raise(SystemExit(5))")
+    assert r.returncode == 3, r.stdout + r.stderr

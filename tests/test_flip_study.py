@@ -9,9 +9,9 @@ from ros_harness import FLIP
 def test_study_flywheel_plans_flip_c_for_each_flywheel(tmp_path):
     r = subprocess.run([sys.executable, str(FLIP), "study", "flywheel", "--motor-speed-scale", "3",
                         "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
-    # exit 2 when a flywheel's flip is rejected: III's 28.6 kg shorten the flight until the 195 N·m
+    # exit 4 when a flywheel's flip is rejected: III's 28.6 kg shorten the flight until the 195 N·m
     # motor cannot turn the body in it (the planner's flight check names it)
-    assert r.returncode in (0, 2), r.stdout + r.stderr
+    assert r.returncode in (0, 4), r.stdout + r.stderr
     doc = json.loads((tmp_path / "study.json").read_text())
     rows = {row["flywheel"]: row for row in doc["rows"]}
     assert list(rows) == ["I", "II", "III"] and doc["platform"] == 0.5 and doc["apex"] == 1.2
@@ -27,7 +27,7 @@ def test_study_flywheel_names_the_limit_when_flip_c_is_out_of_reach(tmp_path):
     # the published knee motor (8.5 rad/s no-load) cannot lift the robot to a 1.2 m apex
     r = subprocess.run([sys.executable, str(FLIP), "study", "flywheel", "--out", str(tmp_path)],
                        capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.returncode == 4, r.stdout + r.stderr
     rows = json.loads((tmp_path / "study.json").read_text())["rows"]
     assert all(row["planned_rpm"] is None and "knee" in row["reason"] for row in rows)
 

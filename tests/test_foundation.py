@@ -511,7 +511,7 @@ def test_flip_request_cli(ros_graph):
     resp = json.loads(r.stdout)
     assert resp["accepted"] is True and resp["plan_id"] == 1 and resp["liftoff_pitch_rate"] > 0
     r = subprocess.run(base + ["backflip", "--apex", "5"], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and json.loads(r.stdout)["reason"]
+    assert r.returncode == 4 and json.loads(r.stdout)["reason"]      # rejected
 
 
 def test_flip_run_end_to_end_with_stand_ins(tmp_path):
@@ -542,11 +542,11 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
 
 
 def test_flip_run_rejected_and_interrupted(tmp_path):
-    # rejected request: exit 2, reason printed, everything stopped
+    # rejected request: exit 4, reason printed, everything stopped
     out = tmp_path / "rej"
     r = subprocess.run([sys.executable, str(FLIP), "run", "frontflip", "--apex", "5", "--out", str(out),
                         *_stand_in_exes()], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.returncode == 4, r.stdout + r.stderr
     assert "request rejected: apex_height" in r.stdout
     s = json.loads((out / "summary.json").read_text())
     assert s["outcome"] == "rejected"
