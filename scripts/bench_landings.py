@@ -31,7 +31,7 @@ EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
 
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
-        distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0) -> dict:
+        distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None) -> dict:
     sys.path.insert(0, str(REPO / "tests"))
     import numpy as np
 
@@ -45,7 +45,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     sim = Simulator(scenario=scenario, motor_speed_scale=scale, flywheel_torque=torque)
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
                      **config_overrides(controller))
-    r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex,
+    r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex, x_start=x_start,
                forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque)
     ev = r["events"]
     lo = next((t for k, t in ev if k == 0), None)
@@ -94,6 +94,8 @@ def main() -> int:
     ap.add_argument("--platform", type=float, default=0.0, help="take off from a platform this high (m; flip C: 0.5)")
     ap.add_argument("--ground-offset", type=float, default=0.0,
                     help="landing ground this much higher than the planner is told (m; flip D: 0.1)")
+    ap.add_argument("--x-start", type=float, default=None,
+                    help="COM x the jump starts from (a run's summary.json planner.x_start_m; default: the initial one)")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     if a.platform and a.ground_offset:
@@ -104,7 +106,7 @@ def main() -> int:
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
-                            a.distance, a.platform, a.ground_offset)
+                            a.distance, a.platform, a.ground_offset, a.x_start)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "

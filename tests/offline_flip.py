@@ -78,14 +78,17 @@ def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
 
 
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
-        node_state=False, **request):
+        node_state=False, x_start=None, **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
-    ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`)."""
+    ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`).
+    ``x_start``: the COM x the jump plan starts from (a graph run's JUMPING reference parameter
+    ``x_start``, summary.json's ``planner.x_start_m``: the planner measured it); None: the initial one."""
     sim = sim or Simulator()
     ctl = controller or Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
     read_state = NodeStateReader(sc, sim) if node_state else sc.from_simulator
     session = FlipSession(kind, **request)
+    session.x_start = x_start
     ref = session.jumping_reference()
     start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
     session.started(start)

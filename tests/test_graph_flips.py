@@ -85,7 +85,9 @@ def assert_offline_reproduces(out, od):
     run = json.loads((out / "run.json").read_text())
     sp, req = run["sim_params"], run["request"]
     bag = load_bag(out / "bag", ["/fslip/reference", "/motor_command", "/contact_events"]).arrays
-    start = json.loads((out / "summary.json").read_text())["planner"]["start_time_s"]
+    planner = json.loads((out / "summary.json").read_text())["planner"]
+    start, x_start = planner["start_time_s"], planner["x_start_m"]
+    assert x_start == bag["/fslip/reference"]["refs"][0]["parameters"]["x_start"]
     assert start == round(bag["/fslip/reference"]["refs"][0]["start_time"], 4)
     cmd = {int(k): e for k, e in zip(bag["/motor_command"]["step"], bag["/motor_command"]["effort"])}
     pos = {int(round(t / 0.0005)): p for t, p in zip(od["t"], od["pos"])}
@@ -107,6 +109,7 @@ def assert_offline_reproduces(out, od):
         return u, info
     ctl.compute = checked
     r = of.run(req["kind"], seconds=max(pos) * 0.0005, start=start, sim=sim, controller=ctl, every=100, node_state=True,
+               x_start=x_start,
                apex_height=req["apex_height"] or None, forward_distance=req["forward_distance"],
                platform_height=req["platform_height"], motor_speed_scale=sp["motor_speed_scale"],
                flywheel_torque=sp["flywheel_torque"])

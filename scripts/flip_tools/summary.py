@@ -270,6 +270,8 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             # the jumping reference's start: where tests/offline_flip.py, and so
             # scripts/bench_landings.py --starts, re-run this flip to the bit without ROS
             "start_time_s": next((_f(r["start_time"], 4) for r in refs if r["domain"] == JUMPING), None),
+            # ... from the COM x the planner measured (--x-start; unrounded: a re-run to the bit needs it all)
+            "x_start_m": next((r["parameters"].get("x_start") for r in refs if r["domain"] == JUMPING), None),
             "planned_peak_flywheel_speed_radps": _f(max(r["peak_flywheel_speed"] for r in refs), 2),
         }
     s["verdict_notes"] = notes

@@ -403,8 +403,10 @@ class FlipSession:
             self.result = PlanResult(self.kind, {}, sol, fig, lo)
             self._prepare_landing()
         r = self.result
+        # x_start: where the plan starts (published, so that an offline re-run starts there, to the bit)
         return ground_reference(JUMPING, r.solution, self.x_start, r.figures,
-                                {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"]})
+                                {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"],
+                                 "x_start": self.x_start})
 
     def _prepare_landing(self):
         """Build the landing NLP and solve it for the predicted touch-down (warm start later)."""
