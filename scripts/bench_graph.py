@@ -10,7 +10,7 @@ thread, and the middleware's threads), which share one CPU: their sum against th
 tells whether the loop waits (wake-ups, hand-overs) or computes.  The machine's load average is
 printed with it: on a shared 2-core machine the factor follows the other processes.
 
-    .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--motor-speed-scale 1]
+    .venv/bin/python scripts/bench_graph.py [--kind backflip] [--runs 2] [--robot NAME] [--motor-speed-scale 1]
         [--flywheel-torque NM] [--apex M] [--cpu-dma-latency US|off] [--lockstep-sched batch|other]
         [--zero-tick S] [--versus "FLIP OPTIONS"]
 
@@ -29,7 +29,7 @@ the table says whether it was held (it needs write access to /dev/cpu_dma_latenc
 controller run as SCHED_BATCH threads on their shared CPU, as `flip` does in lockstep
 (``--lockstep-sched other`` to compare with the kernel's default policy).
 
-(the somersault robot of the README: --motor-speed-scale 3 --flywheel-torque 260 --apex 1.3)
+(the design-study robot the flips land on: --robot cassie-legs3-fw260 --apex 1.3)
 """
 from __future__ import annotations
 
@@ -159,6 +159,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kind", default="backflip", choices=["backflip", "frontflip", "hop"])
     ap.add_argument("--runs", type=int, default=2)
+    ap.add_argument("--robot", help="named robot (flip run --robot)")
     ap.add_argument("--motor-speed-scale", type=float)
     ap.add_argument("--flywheel-torque", type=float)
     ap.add_argument("--apex", type=float)
@@ -175,7 +176,7 @@ def main() -> int:
                          "each run is then a pair, A then B")
     a = ap.parse_args()
     extra = ["--cpu-dma-latency", a.cpu_dma_latency, "--lockstep-sched", a.lockstep_sched]
-    for flag, val in (("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
+    for flag, val in (("--robot", a.robot), ("--motor-speed-scale", a.motor_speed_scale), ("--flywheel-torque", a.flywheel_torque),
                       ("--apex", a.apex)):
         if val:
             extra += [flag, str(val)]

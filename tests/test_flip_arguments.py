@@ -1,5 +1,6 @@
 """`flip` checks every argument before it touches the output folder, and never deletes what it did
 not write (issue: a refused argument wiped a copied run's folder)."""
+import json
 import subprocess
 import sys
 
@@ -104,3 +105,21 @@ def test_infrastructure_failure_exits_3(tmp_path):
     r = flip("run", "hop", "--out", str(tmp_path / "run"), "--ready-timeout", "60",
              "--exe", f"sim={sys.executable} -c raise(SystemExit(5))")
     assert r.returncode == 3, r.stdout + r.stderr
+
+
+def test_a_named_robot_reaches_the_planner_and_its_flags_replace_one_parameter(tmp_path):
+    """--robot sets every design parameter (the request the planner gets says so); a flag replaces
+    just its own; the default is the paper's robot; an unknown name is a usage error."""
+    r = flip("plan", "backflip", "--apex", "1.3", "--robot", "cassie-legs3-fw260", "--out", str(tmp_path / "a"))
+    assert r.returncode == 0, r.stderr
+    req = json.loads((tmp_path / "a" / "plan.json").read_text())["request"]
+    assert (req["flywheel"], req["motor_speed_scale"], req["flywheel_torque"]) == ("I", 3.0, 260.0)
+    r = flip("plan", "backflip", "--apex", "1.3", "--robot", "cassie-legs3-fw260", "--flywheel-torque", "300",
+             "--out", str(tmp_path / "b"))
+    req = json.loads((tmp_path / "b" / "plan.json").read_text())["request"]
+    assert (req["motor_speed_scale"], req["flywheel_torque"]) == (3.0, 300.0)
+    r = flip("plan", "backflip", "--apex", "1.3", "--out", str(tmp_path / "c"))
+    req = json.loads((tmp_path / "c" / "plan.json").read_text())["request"]
+    assert (req["flywheel"], req["motor_speed_scale"], req["flywheel_torque"]) == ("I", 1.0, 195.0)
+    r = flip("plan", "backflip", "--robot", "no-such-robot", "--out", str(tmp_path / "d"))
+    assert r.returncode == 2 and "cassie" in r.stderr

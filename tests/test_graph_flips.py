@@ -22,7 +22,7 @@ from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
 
 #: the somersault robot (README)
-SOMERSAULT_ROBOT = ("--motor-speed-scale", "3", "--flywheel-torque", "260", "--apex", "1.3")
+SOMERSAULT_ROBOT = ("--robot", "cassie-legs3-fw260", "--apex", "1.3")
 
 
 def run_flip(tmp_path, kind, *args):

@@ -316,3 +316,36 @@ def flywheel_motor(fw: Flywheel) -> Motor:
     rpm = fw.max_speed_rpm if fw.max_speed_rpm is not None else math.inf
     return Motor("flywheel", 1.0, fw.max_torque, rpm)
 
+
+@dataclass(frozen=True)
+class Robot:
+    """A named robot: Cassie (this module's tables) with a Table I flywheel, its design knobs set."""
+    name: str
+    flywheel: str = "I"
+    motor_speed_scale: float = 1.0           # leg motors' no-load speeds × this
+    flywheel_torque: float = 195.0           # flywheel motor's constant torque limit, N·m
+    about: str = ""
+
+    def params(self) -> dict:
+        """The design parameters every node that models the robot takes (same names as theirs)."""
+        return {"flywheel": self.flywheel, "motor_speed_scale": self.motor_speed_scale,
+                "flywheel_torque": self.flywheel_torque}
+
+
+#: The paper's robot (the default) and the design studies a user asks for by name (docs/robots.md
+#: gives the evidence for each).
+ROBOTS = {r.name: r for r in (
+    Robot("cassie", about="Cassie as published (Agility's motors and the torque-speed curve of its "
+                          "simulators) with flywheel I of Table I at 195 N*m: the paper's robot"),
+    Robot("cassie-legs3-fw260", motor_speed_scale=3.0, flywheel_torque=260.0,
+          about="design study: leg motors' no-load speeds x3 and a 260 N*m flywheel motor (flywheel I)"),
+)}
+DEFAULT_ROBOT = "cassie"
+
+
+def robot(name: str = DEFAULT_ROBOT) -> Robot:
+    """The named robot; KeyError with the known names otherwise."""
+    try:
+        return ROBOTS[name]
+    except KeyError:
+        raise KeyError(f"unknown robot {name!r}; known: {', '.join(ROBOTS)}") from None
