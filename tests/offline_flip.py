@@ -78,8 +78,9 @@ def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
 
 
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
-        node_state=False, x_start=None, **request):
+        node_state=False, x_start=None, on_step=None, **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
+    ``on_step(sim, ctl, u, info)``, if given, sees every step's command before it is applied.
     ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`).
     ``x_start``: the COM x the jump plan starts from (a graph run's JUMPING reference parameter
     ``x_start``, summary.json's ``planner.x_start_m``: the planner measured it); None: the initial one."""
@@ -116,6 +117,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 ctl.set_reference(to_sampled(r, t_ev))
         q, v = read_state(sim)
         u, info = ctl.compute(q, v, stamp(sim))
+        if on_step is not None:
+            on_step(sim, ctl, u, info)
         sim.step(u)
         if sim.step_index % every == 0:
             p, (qw, qx, qy, qz) = sim.pelvis_pose()
