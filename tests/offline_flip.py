@@ -18,7 +18,7 @@ import numpy as np
 
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
-from fslip_planner.plan import FlipSession, MeasuredState
+from fslip_planner.plan import FlipSession, MeasuredState, PelvisState
 from tsc_controller import Controller, SampledReference, StateConverter
 
 
@@ -72,6 +72,19 @@ class NodeStateReader:
         return qv
 
 
+#: s before the jump's start at which an offline run measures the standing robot and plans (a graph
+#: run's request comes while the robot stands, its plan starts a little later)
+REQUEST_LEAD = 0.05
+
+
+def pelvis_state(sim: Simulator) -> PelvisState:
+    """The pelvis as /odom carries it (planner_node's PelvisState): pose, twist in pelvis axes."""
+    p, (w, x, y, z) = sim.pelvis_pose()
+    lin, ang = sim.pelvis_twist("local")
+    return PelvisState(t=stamp(sim), position=np.array(p, float), orientation=np.array([x, y, z, w]),
+                       linear_velocity=lin, angular_velocity=ang)
+
+
 def to_sampled(ref, start_time, plan_id=1) -> SampledReference:
     return SampledReference(ref.domain, ref.t, ref.names, ref.value, ref.d_value, ref.dd_value,
                             start_time=start_time, plan_id=plan_id, parameters=ref.parameters)
@@ -83,21 +96,28 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     ``on_step(sim, ctl, u, info)``, if given, sees every step's command before it is applied.
     ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`).
     ``x_start``: the COM x the jump plan starts from (a graph run's JUMPING reference parameter
-    ``x_start``, summary.json's ``planner.x_start_m``: the planner measured it); None: the initial one."""
+    ``x_start``, summary.json's ``planner.x_start_m``); None: measured as planner_node measures it,
+    from the standing pelvis (:func:`pelvis_state`) ``REQUEST_LEAD`` s before ``start``."""
     sim = sim or Simulator()
     ctl = controller or Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
     read_state = NodeStateReader(sc, sim) if node_state else sc.from_simulator
     session = FlipSession(kind, **request)
-    session.x_start = x_start
-    ref = session.jumping_reference()
     start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
-    session.started(start)
-    ctl.set_reference(to_sampled(ref, start))
+
+    def plan(state=None):
+        session.x_start = x_start
+        ref = session.jumping_reference(state)
+        session.started(start)
+        ctl.set_reference(to_sampled(ref, start))
+    if x_start is not None:
+        plan()
     log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], speed=[], ang_speed=[], events=[],
                references=[], fell=None)
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
+        if session.result is None and stamp(sim) >= start - REQUEST_LEAD:
+            plan(pelvis_state(sim))
         for ev in sim.pop_events():
             # stamped like sim_node's ContactEvent: the step at which the event is reported (its state
             # is that step's), not the onset (a lift-off is reported 20 steps after its onset)

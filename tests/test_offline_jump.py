@@ -21,8 +21,9 @@ def test_backflip_lifts_off_when_the_jumping_plan_ends(backflip):
     plan_end = backflip["session"].t_start + backflip["session"].result.solution.T
     lo = [t for k, t in backflip["events"] if k == 0]
     # not before the plan's end; after it by the detector's 10 ms report lag and the time this robot
-    # takes to unload its springs (measured: +42 ms; it lifts off faster than planned, README)
-    assert lo and plan_end - 0.03 <= lo[0] <= plan_end + 0.05
+    # takes to unload its springs and catch up with the plan (measured: +54 ms planned from the
+    # measured standing COM, +42 ms from the initial one; it lifts off faster than planned, README)
+    assert lo and plan_end - 0.03 <= lo[0] <= plan_end + 0.06
 
 
 def test_backflip_turns_backwards_in_the_air(backflip):
