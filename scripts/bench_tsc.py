@@ -224,24 +224,8 @@ def main():
             bench(f"qpsolvers.solve_qp({sv!r})", Q)
     except ImportError:
         print("| qpsolvers not installed")
-    try:
-        import osqp  # noqa: F401
-        import scipy.sparse as sp
-
-        class O:
-            def __init__(self, m):
-                pass
-
-            def solve(self, H, g, C, lo, up, lb, ub):
-                s = osqp.OSQP()
-                A = sp.csc_matrix(np.vstack([C, np.eye(11)]))
-                s.setup(sp.csc_matrix(np.triu(H)), g, A, np.r_[lo, lb], np.r_[up, ub], verbose=False,
-                        eps_abs=1e-7, eps_rel=1e-7, polish=True)
-                return s.solve().x, None, 0
-        bench("OSQP, set up every tick", O)
-    except ImportError:
-        print("| OSQP: not installed in the venv (not compared)")
-
+    bench("OSQP (the TSC's, updated and warm-started)", lambda m: T._OSQP(11, m))
+    bench("OSQP, set up every tick", lambda m: T._OSQP(11, m), warm=False)
 
 if __name__ == "__main__":
     main()

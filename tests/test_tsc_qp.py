@@ -1,5 +1,5 @@
 """The TSC QP (paper eq. (QP)) respects every bound on random states: torque-speed envelope,
-unilateral normal force, friction pyramid; ProxQP and DAQP agree."""
+unilateral normal force, friction pyramid; ProxQP, OSQP and DAQP agree."""
 import numpy as np
 import pytest
 
@@ -14,7 +14,7 @@ from tsc_controller.tsc import ConstrainedDynamics, Desired
 @pytest.fixture(scope="module")
 def controllers():
     x = export_mjcf()
-    return {s: Controller(x, solver=s) for s in ("proxqp", "daqp")}
+    return {s: Controller(x, solver=s) for s in ("proxqp", "daqp", "osqp")}
 
 
 def _random_task(ctl, rng):
@@ -42,7 +42,7 @@ def _random_problems(ctl, seed, n=25):
         yield (trial, lb, ub, *_random_task(ctl, rng))
 
 
-@pytest.mark.parametrize("solver", ["proxqp", "daqp"])
+@pytest.mark.parametrize("solver", ["proxqp", "daqp", "osqp"])
 def test_qp_respects_bounds(controllers, solver):
     ctl = controllers[solver]
     dyn = ctl.dyn
@@ -69,8 +69,9 @@ def test_qp_respects_bounds(controllers, solver):
     assert n_solved >= 15
 
 
-def test_solvers_agree(controllers):
-    a, b = controllers["proxqp"], controllers["daqp"]
+@pytest.mark.parametrize("solver", ["proxqp", "osqp"])
+def test_solvers_agree(controllers, solver):
+    a, b = controllers[solver], controllers["daqp"]
     rng = np.random.default_rng(9)
     for trial in range(10):
         q, v = random_state(a.dyn, rng, True)

@@ -171,7 +171,55 @@ class _DAQP:
         return np.asarray(x), ("solved" if flag == 1 else f"daqp_exit_{flag}"), int(info.get("iterations", 0))
 
 
-SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP}
+class _OSQP:
+    """OSQP (ADMM, through its own API): H (dense, its upper triangle) and [C; I] keep the same
+    pattern from tick to tick, so the solver is set up once per problem size and then updated and
+    warm-started; tolerances 1e-8 (no polishing: it prints to stdout whatever the verbosity)."""
+
+    def __init__(self, n, n_in):
+        import osqp
+        from scipy import sparse
+        self.osqp, self.n, self.n_in = osqp, n, n_in
+        self.prob = None
+        rows, cols = np.triu_indices(n)
+        self._P, self._Pidx = self._pattern(sparse, rows, cols, (n, n))
+        ar, ac = np.divmod(np.arange((n_in + n) * n), n)
+        self._A, self._Aidx = self._pattern(sparse, ar, ac, (n_in + n, n))
+        self._Ad = np.zeros((n_in + n, n))
+        self._Ad[n_in:] = np.eye(n)
+
+    @staticmethod
+    def _pattern(sparse, rows, cols, shape):
+        """A CSC matrix with every (row, col) stored (zeros too) and, per stored entry, the flat
+        row-major index of the dense matrix it comes from."""
+        m = sparse.csc_matrix((np.arange(1, len(rows) + 1, dtype=float), (rows, cols)), shape=shape)
+        order = m.data.astype(int) - 1
+        return m, rows[order] * shape[1] + cols[order]
+
+    def solve(self, H, g, C, lo, up, lb, ub):
+        n_in = self.n_in
+        if n_in:
+            self._Ad[:n_in] = C
+            lower, upper = np.concatenate([lo, lb]), np.concatenate([up, ub])
+        else:
+            lower, upper = np.asarray(lb, float), np.asarray(ub, float)
+        Px, Ax = np.asarray(H, float).ravel()[self._Pidx], self._Ad.ravel()[self._Aidx]
+        if self.prob is None:
+            self._P.data[:], self._A.data[:] = Px, Ax
+            self.prob = self.osqp.OSQP()
+            self.prob.setup(self._P, np.asarray(g, float), self._A, lower, upper, eps_abs=1e-8,
+                            eps_rel=1e-8, polishing=False, verbose=False, warm_starting=True, max_iter=20000)
+        else:
+            self.prob.update(q=np.asarray(g, float), l=lower, u=upper, Px=Px, Ax=Ax)
+        r = self.prob.solve(raise_error=False)    # a failed solve is a status, as for the other solvers
+        st = str(r.info.status)
+        ok = st.startswith("solved") and r.x is not None
+        # ADMM meets the bounds to its tolerance only (~1e-5 N·m over): the torques onto them exactly
+        return (np.clip(np.asarray(r.x, float), lb, ub) if ok else np.full(self.n, np.nan),
+                "solved" if ok else f"osqp_{st}", int(r.info.iter))
+
+
+SOLVERS = {"proxqp": _ProxQP, "daqp": _DAQP, "osqp": _OSQP}
 
 
 class _Task:
