@@ -152,7 +152,7 @@ def test_controller_overrides_from_json():
     # the numpy reference tick instead of the compiled one
     assert Controller(export_mjcf(), **config_overrides('{"backend": "python"}')).dyn.native is None
     for bad, why in [('{"backend": "fortran"}', "backend must be one of native, python"),
-                     ('{"solver": "osqp"}', "solver must be one of"),('{"no_such": 1}', "unknown controller setting"), ("[1, 2]", "JSON object"),
+                     ('{"solver": "gurobi"}', "solver must be one of"),('{"no_such": 1}', "unknown controller setting"), ("[1, 2]", "JSON object"),
                      ("{oops", "not JSON"), ('{"gains": {"com": [1, 2]}}', "three numbers"),
                      ('{"gains": {"nose": [1, 2, 3]}}', "unknown output"),
                      ('{"cop_margin_domains": {"AIR": 0.1}}', "not a domain"),
