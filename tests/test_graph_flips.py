@@ -181,6 +181,9 @@ def test_a_second_flip_on_a_running_graph_starts_where_the_first_landed(ros_grap
         if not second.accepted:
             # the first backflip lands in ~4 of 5 graph runs (README): after a fall (or while still
             # moving) the planner refuses, naming what it measured (item 5); item 1 is not checked then
+            # (a landing still under way -- a rebound re-opens it -- is refused for that reason first)
+            if "under way" in second.reason:
+                return
             assert second.reason.startswith("not_standing"), second.reason
             assert any(w in second.reason for w in ("tilted", "above the take-off", "moving", "turning")), second.reason
             return
