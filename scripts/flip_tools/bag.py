@@ -336,74 +336,31 @@ _CONVERTERS = {
 
 
 # ------------------------------------------------------------------------------- recovery
-_MAGIC = b"\x89MCAP0\r\n"
-_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END, _OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
-
-
-def _records(buf: bytes, start: int, end: int):
-    """(opcode, content start, content end) of the whole records in buf[start:end]; a record cut
-    short (a file truncated mid-write) ends the walk."""
-    i = start
-    while i + 9 <= end:
-        op, n = buf[i], int.from_bytes(buf[i + 1:i + 9], "little")
-        if i + 9 + n > end:
-            return
-        yield op, i + 9, i + 9 + n
-        i += 9 + n
-
-
-def _string(buf: bytes, i: int) -> tuple[str, int]:
-    n = int.from_bytes(buf[i:i + 4], "little")
-    return buf[i + 4:i + 4 + n].decode(), i + 4 + n
-
-
 def scan_mcap(path: str | Path) -> dict:
-    """Schemas, channels and messages of an MCAP file read front to back, as a streaming reader
-    does (no summary or index needed): every whole record, chunks decompressed; a truncated or
-    undecodable tail is left out. Returns {"schemas": {id: (name, encoding, data)}, "channels":
-    {id: (topic, schema id, message encoding, metadata bytes)}, "messages": [(channel id, log time,
-    data)], "bytes_read": offset of the end of the last whole record, "size": file size}."""
-    from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
-    buf = Path(path).read_bytes()
-    out = {"schemas": {}, "channels": {}, "messages": [], "bytes_read": 0, "size": len(buf)}
-    if not buf.startswith(_MAGIC):
-        return out
-
-    def content(b, start, end, top):
-        for op, i, j in _records(b, start, end):
-            if op == _OP_SCHEMA:
-                sid = int.from_bytes(b[i:i + 2], "little")
-                name, k = _string(b, i + 2)
-                enc, k = _string(b, k)
-                n = int.from_bytes(b[k:k + 4], "little")
-                out["schemas"][sid] = (name, enc, b[k + 4:k + 4 + n].decode())
-            elif op == _OP_CHANNEL:
-                cid, sid = int.from_bytes(b[i:i + 2], "little"), int.from_bytes(b[i + 2:i + 4], "little")
-                topic, k = _string(b, i + 4)
-                enc, k = _string(b, k)
-                n = int.from_bytes(b[k:k + 4], "little")
-                out["channels"][cid] = (topic, sid, enc, b[k + 4:k + 4 + n])
-            elif op == _OP_MESSAGE:
-                cid, t = int.from_bytes(b[i:i + 2], "little"), int.from_bytes(b[i + 6:i + 14], "little")
-                out["messages"].append((cid, t, b[i + 22:j]))
-            elif op == _OP_CHUNK and top:
-                size = int.from_bytes(b[i + 16:i + 24], "little")
-                comp, k = _string(b, i + 28)
-                n = int.from_bytes(b[k:k + 8], "little")
-                try:
-                    raw = DECOMPRESSORS[comp](b[k + 8:k + 8 + n], size)
-                except Exception:  # noqa: BLE001 - a chunk that does not decompress ends the bag
-                    return False
-                if len(raw) != size:
-                    return False
-                content(raw, 0, size, False)
-            elif op in (_OP_DATA_END, _OP_FOOTER) and top:
-                out["bytes_read"] = len(b)            # the data section is whole: nothing cut off
-                return False
-            if top:
-                out["bytes_read"] = j
-        return True
-    content(buf, len(_MAGIC), len(buf), True)
+    """Schemas, channels and messages of an MCAP file read front to back by mcap's streaming reader
+    (no summary or index needed; chunks decompressed); a truncated or undecodable tail is left out.
+    Returns {"schemas": {id: (name, encoding, data)}, "channels": {id: (topic, schema id, message
+    encoding, metadata)}, "messages": [(channel id, log time, data)], "bytes_read": offset of the end
+    of the last whole record, "size": file size}."""
+    from mcap.records import Channel, DataEnd, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader
+    path = Path(path)
+    out = {"schemas": {}, "channels": {}, "messages": [], "bytes_read": 0, "size": path.stat().st_size}
+    with open(path, "rb") as f:
+        try:
+            for rec in StreamReader(f).records:
+                if isinstance(rec, Schema):
+                    out["schemas"][rec.id] = (rec.name, rec.encoding, rec.data.decode())
+                elif isinstance(rec, Channel):
+                    out["channels"][rec.id] = (rec.topic, rec.schema_id, rec.message_encoding, rec.metadata)
+                elif isinstance(rec, Message):
+                    out["messages"].append((rec.channel_id, rec.log_time, rec.data))
+                elif isinstance(rec, (DataEnd, Footer)):
+                    out["bytes_read"] = out["size"]          # the data section is whole: nothing cut off
+                    break
+                out["bytes_read"] = f.tell()
+        except Exception:  # noqa: BLE001 - the cut-off tail of a file whose writer was killed
+            pass
     return out
 
 
@@ -416,7 +373,7 @@ def recover_bag(path: str | Path) -> dict | None:
     import shutil
 
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-    from rosbags.rosbag2.storage_mcap import get_qos
+    from rosbags.rosbag2.storage_mcap import parse_qos
     from rosbags.typesys import Stores, get_typestore
     path = Path(path)
     if (path / "metadata.yaml").exists():
@@ -443,9 +400,11 @@ def recover_bag(path: str | Path) -> dict | None:
             conns = {}
             for cid, (topic, sid, enc, meta) in scan["channels"].items():
                 name, _fmt, text = scan["schemas"].get(sid, ("", "", ""))
-                if (topic, name, enc, meta) in added:
-                    conns[cid] = added[(topic, name, enc, meta)]
+                key = (topic, name, enc, tuple(sorted(meta.items())))
+                if key in added:
+                    conns[cid] = added[key]
                     continue
+                qos = meta.get("offered_qos_profiles")
                 try:
                     if name not in store.fielddefs:
                         store.register(get_types_from_msg(text, name))
@@ -454,8 +413,8 @@ def recover_bag(path: str | Path) -> dict | None:
                     rihs01 = fallback.hash_rihs01(name) if name in fallback.fielddefs else "RIHS01_" + "0" * 64
                 conns[cid] = writer.add_connection(topic, name, msgdef=text, rihs01=rihs01,
                                                    serialization_format=enc or "cdr",
-                                                   offered_qos_profiles=get_qos(meta))
-                added[(topic, name, enc, meta)] = conns[cid]
+                                                   offered_qos_profiles=parse_qos(qos) if qos else [])
+                added[key] = conns[cid]
             for cid, t, msg in scan["messages"]:
                 if cid in conns:
                     writer.write(conns[cid], t, msg)

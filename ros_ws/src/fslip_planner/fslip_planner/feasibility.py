@@ -178,3 +178,51 @@ def check_flight(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
             f"over by {need_tucked - p.tau_max:.0f} N·m (a higher apex gives a longer flight)",
             "flywheel torque (flight)")
     return flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land), need_tucked
+
+
+# ------------------------------------------------------------------------------- standing
+#: how near the standing state at rest the measured pelvis must be for a flip to be planned from it
+#: (InfeasibleRequest "not_standing" otherwise): tilt of its z axis, height above the take-off ground
+#: against the standing pose's, speed, angular rate
+STAND_MAX_TILT = math.radians(10.0)
+STAND_HEIGHT_TOL = 0.05
+STAND_MAX_SPEED = 0.2
+STAND_MAX_RATE = 0.5
+
+
+def rotation_xyzw(q):
+    """Rotation matrix of a quaternion (x, y, z, w), normalised (scipy's)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_quat(np.asarray(q, float)).as_matrix()
+
+
+def standing_com_x(state, robot, ground_z: float = 0.0) -> float:
+    """World COM x of a robot standing at ``state`` (a ``plan.PelvisState``: the standing pose's COM
+    of ``robot``, a ``plan._Robot``, carried by the measured pelvis), where a jump plan starts;
+    InfeasibleRequest (limit "not_standing") unless the pelvis is
+    near the standing state at rest on the take-off ground at ``ground_z``: tilt, height above it,
+    speed and angular rate within the STAND_* bounds."""
+    vals = np.r_[state.t, np.ravel(state.position), np.ravel(state.orientation),
+                 np.ravel(state.linear_velocity), np.ravel(state.angular_velocity)]
+    if vals.size != 14 or not np.all(np.isfinite(vals)) or np.linalg.norm(state.orientation) < 1e-9:
+        raise InfeasibleRequest(f"not_standing: malformed measured pelvis state {state}", "not_standing")
+    R = rotation_xyzw(state.orientation)
+    tilt = math.acos(max(-1.0, min(1.0, R[2, 2])))
+    height = float(state.position[2]) - ground_z
+    stand = float(robot.pelvis0[2])
+    speed = float(np.linalg.norm(state.linear_velocity))
+    rate = float(np.linalg.norm(state.angular_velocity))
+    off = []
+    if tilt > STAND_MAX_TILT:
+        off.append(f"pelvis tilted {math.degrees(tilt):.1f} deg (at most {math.degrees(STAND_MAX_TILT):.0f})")
+    if abs(height - stand) > STAND_HEIGHT_TOL:
+        off.append(f"pelvis {height:.3f} m above the take-off ground at z = {ground_z:g} m "
+                   f"(standing: {stand:.3f} +- {STAND_HEIGHT_TOL:g})")
+    if speed > STAND_MAX_SPEED:
+        off.append(f"pelvis moving at {speed:.2f} m/s (at most {STAND_MAX_SPEED:g})")
+    if rate > STAND_MAX_RATE:
+        off.append(f"pelvis turning at {rate:.2f} rad/s (at most {STAND_MAX_RATE:g})")
+    if off:
+        raise InfeasibleRequest(f"not_standing: the robot is not standing at rest at sim t = {state.t:.3f} s: "
+                                + "; ".join(off), "not_standing")
+    return float(state.position[0] + (R @ robot.com_in_pelvis)[0])

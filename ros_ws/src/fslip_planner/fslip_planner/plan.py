@@ -20,8 +20,8 @@ import numpy as np
 from . import fslip as F
 from . import flight as Fl
 from . import jumping as Jm
-from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck,
-                          unreachable_message, validate_inputs)
+from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck, rotation_xyzw,
+                          standing_com_x, unreachable_message, validate_inputs)
 from .landing import LandingProblem
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -40,13 +40,7 @@ JUMPING, FLIGHT, LANDING = 1, 2, 3
 #: largest leg lean (rad from vertical) a landing is planned from; a measured touch-down beyond it is
 #: planned from this lean
 MAX_TOUCHDOWN_LEAN = math.radians(45.0)
-#: how near the standing state at rest the measured pelvis must be for a flip to be planned from it
-#: (InfeasibleRequest "not_standing" otherwise): tilt of its z axis, height above the take-off ground
-#: against the standing pose's, speed, angular rate
-STAND_MAX_TILT = math.radians(10.0)
-STAND_HEIGHT_TOL = 0.05
-STAND_MAX_SPEED = 0.2
-STAND_MAX_RATE = 0.5
+
 
 
 @dataclass
@@ -116,7 +110,7 @@ class _Robot:
         p0, q0 = sim.pelvis_pose()
         self.pelvis0 = p0
         # the standing COM in the pelvis frame: where the COM is when the robot stands, wherever it is
-        self.com_in_pelvis = _rotation_xyzw(np.r_[q0[1:], q0[0]]).T @ (self.com0 - p0)
+        self.com_in_pelvis = rotation_xyzw(np.r_[q0[1:], q0[0]]).T @ (self.com0 - p0)
         self.mass = sim.total_mass()
         m, d = sim.model, sim.data
         import mujoco
@@ -152,45 +146,6 @@ def default_apex(flywheel="I", motor_speed_scale=1.0, flywheel_torque=None):
     """Default apex (m): the reachable maximum minus :data:`DEFAULT_APEX_MARGIN` (I: 1.05 m)."""
     p = _Robot.get(flywheel, motor_speed_scale, flywheel_torque).params
     return round(max_vertical_jump(p)[0] - DEFAULT_APEX_MARGIN, 2)
-
-
-def _rotation_xyzw(q):
-    """Rotation matrix of a quaternion (x, y, z, w), normalised."""
-    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def standing_com_x(state: PelvisState, robot: "_Robot", ground_z: float = 0.0) -> float:
-    """World COM x of a robot standing at ``state`` (the standing pose's COM carried by the measured
-    pelvis), where a jump plan starts; InfeasibleRequest (limit "not_standing") unless the pelvis is
-    near the standing state at rest on the take-off ground at ``ground_z``: tilt, height above it,
-    speed and angular rate within the STAND_* bounds."""
-    vals = np.r_[state.t, np.ravel(state.position), np.ravel(state.orientation),
-                 np.ravel(state.linear_velocity), np.ravel(state.angular_velocity)]
-    if vals.size != 14 or not np.all(np.isfinite(vals)) or np.linalg.norm(state.orientation) < 1e-9:
-        raise InfeasibleRequest(f"not_standing: malformed measured pelvis state {state}", "not_standing")
-    R = _rotation_xyzw(state.orientation)
-    tilt = math.acos(max(-1.0, min(1.0, R[2, 2])))
-    height = float(state.position[2]) - ground_z
-    stand = float(robot.pelvis0[2])
-    speed = float(np.linalg.norm(state.linear_velocity))
-    rate = float(np.linalg.norm(state.angular_velocity))
-    off = []
-    if tilt > STAND_MAX_TILT:
-        off.append(f"pelvis tilted {math.degrees(tilt):.1f} deg (at most {math.degrees(STAND_MAX_TILT):.0f})")
-    if abs(height - stand) > STAND_HEIGHT_TOL:
-        off.append(f"pelvis {height:.3f} m above the take-off ground at z = {ground_z:g} m "
-                   f"(standing: {stand:.3f} +- {STAND_HEIGHT_TOL:g})")
-    if speed > STAND_MAX_SPEED:
-        off.append(f"pelvis moving at {speed:.2f} m/s (at most {STAND_MAX_SPEED:g})")
-    if rate > STAND_MAX_RATE:
-        off.append(f"pelvis turning at {rate:.2f} rad/s (at most {STAND_MAX_RATE:g})")
-    if off:
-        raise InfeasibleRequest(f"not_standing: the robot is not standing at rest at sim t = {state.t:.3f} s: "
-                                + "; ".join(off), "not_standing")
-    return float(state.position[0] + (R @ robot.com_in_pelvis)[0])
 
 
 # ------------------------------------------------------------------------------------------ knots
