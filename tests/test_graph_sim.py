@@ -64,11 +64,11 @@ def test_lockstep_simulator_ignores_bad_commands_and_resends(ros_graph, sim_io, 
 
 
 def test_realtime_stand_runs_on_the_wall_clock_and_counts_late_commands(tmp_path):
-    """`flip stand --mode realtime`: the simulator steps on the wall clock with the newest command and
-    counts its late steps and the steps without a new command; both nodes end cleanly and the bag
-    holds the run. (Whether the robot stays up depends on how many commands come late: on this
-    2-core machine the graph runs at ~1.1x real time with jitter, and a run with ~300 late steps sagged
-    to 0.73 m; the lockstep mode is the one that does not depend on it.)"""
+    """`flip stand --mode realtime`: the simulator holds the robot at step 0 until the tool has seen
+    the recorder match every topic and calls /sim/release (a reader matching the controller's
+    publisher mid-run stalled the controller's state for ~0.3 s, and the robot fell), then steps on
+    the wall clock with the newest command and counts its late steps and the steps without a new
+    command; the robot stands, both nodes end cleanly and the bag holds the run."""
     import json
     out = tmp_path / "rt"
     r = subprocess.run([sys.executable, str(FLIP), "stand", "--mode", "realtime", "--duration", "1.0",
@@ -84,3 +84,4 @@ def test_realtime_stand_runs_on_the_wall_clock_and_counts_late_commands(tmp_path
     # on the wall clock the nodes keep the kernel's default policy (woken threads preempt)
     assert json.loads((out / "run.json").read_text())["lockstep_sched"] == "other"
     assert "running: mode=realtime" in log and "SCHED_OTHER" in log and "SCHED_BATCH" not in log
+    assert "held at step 0 for" in log and "released: on the wall clock" in r.stdout + r.stderr

@@ -18,8 +18,11 @@ back to this loop whatever is not routine: a step with pre-step work (1.), a wai
 command (a re-send, a reference, a wrong size, an interrupt), the run's end, and every 200 steps
 (services, and the stop's signal handler, which only Python runs: a stop ends the run at the next
 such return, at a step's end); ``compiled_loop:=false`` keeps every step in Python (the same messages).
-Modes: ``lockstep`` (default), ``realtime`` (step on the wall clock holding the latest command,
-counting late and missing ones; a silent controller gets motor damping), and ``controller:=none``
+Modes: ``lockstep`` (default), ``realtime`` (the robot stays at step 0, its state re-sent, until the
+controller has answered it, and with ``hold:=true`` until ``/sim/release`` is called, as a robot
+leaves its gantry once its controller runs and the graph is up; then it steps on the wall clock
+holding the latest command, counting late and missing ones; a silent controller gets motor
+damping), and ``controller:=none``
 (zero torques, no waiting).
 A stop (SIGINT, SIGTERM) ends the loop at a step's end: the node installs its own handlers instead of
 rclpy's, which shut the context down from another thread at once (a step then lost the messages it
@@ -118,6 +121,10 @@ class SimNode:
         self.rcl_io = bool(_declare(n, 'rcl_io', True))
         # lockstep with rcl_io: the routine steps in C++ (_rcl_io.SimLoop; module doc); false: in Python
         self.compiled_loop = bool(_declare(n, 'compiled_loop', True))
+        # realtime: hold the robot at step 0 until /sim/release (an orchestrator releases it once
+        # every reader has matched: the graph's matching stalled deliveries for ~0.3 s)
+        self.hold = bool(_declare(n, 'hold', False))
+        self.released = not self.hold
         if self.mode not in ('lockstep', 'realtime'):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', not {self.mode!r}")
         if self.controller not in ('tsc', 'none'):
@@ -148,6 +155,7 @@ class SimNode:
         # Services are served by a second node spun by an executor between steps.
         self.srv_node = rclpy.create_node('sim_node_services')
         self.srv_node.create_service(Trigger, '/sim/reset', self._on_reset)
+        self.srv_node.create_service(Trigger, '/sim/release', self._on_release)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.srv_node)
 
@@ -312,16 +320,38 @@ class SimNode:
         response.message = 'reset to standing at the next step'
         return response
 
+    def _on_release(self, request, response):
+        response.success = self.mode == 'realtime'
+        response.message = ('released: on the wall clock' if response.success
+                            else f'nothing to release in {self.mode} mode')
+        self.released = True
+        return response
+
+    def _hold_at_start(self):
+        """Realtime: step 0's command, the state re-sent until it comes and (``hold``) until
+        /sim/release. Returns the newest command, or None when the run was stopped."""
+        cmd = self._wait_command(0)
+        t_sent = time.monotonic()
+        while cmd is not None and not self.released:
+            newer = self._newest_command(self.subs.take_all(), 0)
+            cmd = cmd if newer is None else newer
+            self.executor.spin_once(timeout_sec=0.005)
+            if not self._running():
+                return None
+            if time.monotonic() - t_sent >= COMMAND_RESEND_S:
+                self._publish_state(0)
+                t_sent = time.monotonic()
+        return cmd
+
     # -- main loop ---------------------------------------------------------------------------
     def run(self):
         log = self.node.get_logger()
-        need = self.min_subscribers + (1 if self.controller == 'tsc' and self.mode == 'lockstep' else 0)
+        need = self.min_subscribers + (1 if self.controller == 'tsc' else 0)
         # lockstep: the controller's /motor_command matched here too (a command it sends before this side
         # has matched it is lost, and the state re-sent after COMMAND_RESEND_S).  The first state can still
         # be re-sent a few times (~0.25 s, in some graph runs: the controller's side of the match);
         # summary.json reports that wait apart (first_state_wait_s)
-        cmd_sub = (self.subs.subscription('/motor_command') if self.controller == 'tsc' and self.mode == 'lockstep'
-                   else None)
+        cmd_sub = self.subs.subscription('/motor_command') if self.controller == 'tsc' else None
         if need:
             log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock'
                      + (' and a publisher of /motor_command' if cmd_sub is not None else ''))
@@ -353,7 +383,7 @@ class SimNode:
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
                  f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m'
                  f'{"; compiled loop" if self.sim_loop is not None else ""}; {scheduling_note()}')
-        wall0 = time.monotonic()
+        wall0 = t_start = time.monotonic()
         cpu0 = (time.process_time(), time.thread_time())
         k = 0
         self.last_state_k = -1
@@ -401,6 +431,13 @@ class SimNode:
                         if cmd is None:
                             break
                         self.command[:] = cmd
+                    elif k == 0:
+                        cmd = self._hold_at_start()
+                        if cmd is None:
+                            break
+                        self.command[:] = cmd
+                        wall0 = time.monotonic()
+                        log.info(f'held at step 0 for {wall0 - t_start:.3f} s; on the wall clock from here')
                     else:
                         cmd = self._newest_command(self.subs.take_all(), k)
                         if cmd is not None:
