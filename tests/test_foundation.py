@@ -351,6 +351,25 @@ def test_summary_real_time_factor_ignores_resent_first_and_last_states(tmp_path,
     assert s["sim_duration_s"] == pytest.approx(1.0 + 0.3 + 0.6 + 0.4 + 1.5, abs=0.01)
 
 
+def test_summary_counts_each_per_step_topic_from_the_first_step(tmp_path):
+    """summary.json's recorded_steps: /odom, /joint_states and /motor_command against the steps
+    simulated from step 0 (a run that lost its first commands shows it), and a verdict note names
+    the first step a topic misses."""
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    tr = write_flip_bag(tmp_path / "whole", dt=0.0005, rotation_deg=360.0, final_z=0.9)
+    n = len(tr["t"])
+    s = summarize_bag(tmp_path / "whole", kind="frontflip")
+    assert s["recorded_steps"]["/odom"] == {"recorded": n, "expected": n, "fraction": 1.0, "first_missing": None}
+    assert s["recorded_steps"]["/motor_command"]["first_missing"] is None
+    assert not any("not in the bag" in x for x in s["verdict_notes"])
+    write_flip_bag(tmp_path / "holes", dt=0.0005, rotation_deg=360.0, final_z=0.9, drop_joint_states=(0, 7, 8))
+    s = summarize_bag(tmp_path / "holes", kind="frontflip")
+    assert s["recorded_steps"]["/joint_states"] == {"recorded": n - 3, "expected": n,
+                                                    "fraction": round((n - 3) / n, 5), "first_missing": 0}
+    assert f"/joint_states: 3 of {n} steps not in the bag (the first: step 0)" in s["verdict_notes"]
+
+
 def test_summary_frontflip_landed(tmp_path):
     from flip_tools.summary import summarize_bag
     from synthetic_bag import write_flip_bag

@@ -117,6 +117,34 @@ def _stats_us(v: np.ndarray) -> dict | None:
             "mean": _f(v.mean(), 1), "n": int(len(v))}
 
 
+def recorded_steps(data: BagData, dt: float = 0.0005) -> dict:
+    """Per-step topics against the steps simulated, from step 0 to the last state in the bag
+    (``/odom``'s newest stamp / dt): for /odom, /joint_states (stamp k*dt) and /motor_command (its
+    ``step``) the distinct steps recorded, the steps expected and the first step missing (None: none);
+    a lockstep run loses none.  ``{}`` without /odom."""
+    od = data.get("/odom")
+    if od is None or not len(od["t"]):
+        return {}
+    last = int(round(float(np.max(od["t"])) / dt))
+    out = {}
+    for topic in ("/odom", "/joint_states", "/motor_command"):
+        d = data.get(topic)
+        if d is None:
+            out[topic] = {"recorded": 0, "expected": last + 1, "fraction": 0.0, "first_missing": 0}
+            continue
+        steps = (np.asarray(d["step"], np.int64) if topic == "/motor_command"
+                 else np.rint(np.asarray(d["t"]) / dt).astype(np.int64))
+        have = np.zeros(last + 1, bool)
+        have[steps[(steps >= 0) & (steps <= last)]] = True
+        # the last state's command may not have come before the simulator was stopped
+        expected = last if topic == "/motor_command" else last + 1
+        n = int(np.count_nonzero(have[:expected]))
+        miss = np.flatnonzero(~have[:expected])
+        out[topic] = {"recorded": n, "expected": expected, "fraction": _f(n / expected if expected else 1.0, 5),
+                      "first_missing": int(miss[0]) if miss.size else None}
+    return out
+
+
 def summarize_bag(bag: str | Path, kind: str | None = None, landing_ground_z: float = 0.0,
                   takeoff_ground_z: float | None = None) -> dict:
     return summarize(load_bag(bag), kind=kind, landing_ground_z=landing_ground_z,
@@ -158,15 +186,11 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
         s["sim_time_source"] = topic
     else:
         notes.append("no /odom or /clock in the bag: no sim duration / real-time factor")
-    for topic, key in (("/odom", "t"), ("/clock", "sim_t")):
-        d = data.get(topic)
-        if d is not None and len(d[key]) > 1:
-            st = np.unique(d[key])
-            steps = np.diff(st)
-            dt = float(np.median(steps)) if len(steps) else 0.0
-            if dt > 0:
-                expected = int(round((st[-1] - st[0]) / dt)) + 1
-                s[f"{topic[1:]}_messages_recorded_fraction"] = _f(len(st) / expected, 4)
+    s["recorded_steps"] = recorded_steps(data)
+    for topic, r in s["recorded_steps"].items():
+        if r["recorded"] < r["expected"]:
+            notes.append(f"{topic}: {r['expected'] - r['recorded']} of {r['expected']} steps not in the bag "
+                         f"(the first: step {r['first_missing']})")
 
     # ---- contact events: flight time, bodies other than the feet on the ground ----------------
     ce = data.get("/contact_events")
