@@ -9,7 +9,7 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
-        [--distance 0] [--platform 0 | --ground-offset 0]
+        [--distance 0] [--platform 0 | --ground-offset 0] [--states]
 
 (defaults: the somersault robot of the README and the 15 start times of the README's tally)
 """
@@ -56,11 +56,28 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
         i = min(int(np.searchsorted(r["t"], td)), len(r["t"]) - 1)
         out.update(flight_s=td - lo, td_rotation_deg=math.degrees(r["pitch"][i]),
                    td_axis_tilt_deg=math.degrees(r["axis_tilt"][i]))
+    lo_plan = r["session"].result.lift_off if r["session"].result is not None else None
+    lo_st = next((st for k, st in r["event_states"] if k == 0), None)
+    td_st = next((st for k, st in r["event_states"] if k == 1 and lo_st is not None and st.t > lo_st.t), None)
+    out["states"] = {"lift_off": _state_row(lo_st), "touch_down": _state_row(td_st),
+                     "planned_lift_off": None if lo_plan is None else
+                     {"com_ahead_of_feet": lo_plan["x"], "xdot": lo_plan["xdot"], "zdot": lo_plan["zdot"],
+                      "H": lo_plan["momentum"]}}
     z_end, pitch_end = float(r["z"][-1]), float(r["pitch"][-1])
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     out["landed"] = bool(r["fell"] is None and td is not None and z_end > 0.8
                          and abs(pitch_end - EXPECTED[kind]) < 0.3 and out["at_rest"])
     return out
+
+
+def _state_row(st) -> dict | None:
+    """A contact event's state as the table shows it: COM x ahead of the feet's centre (m), COM
+    velocity x and z (m/s), centroidal pitch momentum (kg m^2/s)."""
+    if st is None:
+        return None
+    ahead = None if st.support_center is None else float(st.com[0] - st.support_center[0])
+    return {"com_ahead_of_feet": ahead, "xdot": float(st.com_velocity[0]), "zdot": float(st.com_velocity[2]),
+            "H": float(st.pitch_momentum)}
 
 
 def start_cell(start: float) -> str:
@@ -97,6 +114,9 @@ def main() -> int:
     ap.add_argument("--x-start", type=float, default=None,
                     help="COM x the jump starts from (a run's summary.json planner.x_start_m; default: the initial one)")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--states", action="store_true",
+                    help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
+                         "feet, COM velocity x and z, pitch momentum")
     a = ap.parse_args()
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
@@ -119,6 +139,18 @@ def main() -> int:
         print(f"| {r['kind']} | {start_cell(r['start'])} | {'yes' if r['landed'] else 'no'} | "
               f"{'yes' if r['at_rest'] else 'no'} | {f(r['fell_at'], 3)} | "
               f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} |")
+    if a.states:
+        print()
+        print("| flip | start s | lift-off COM ahead of feet m (plan) | ẋ m/s (plan) | ż m/s (plan) | H kg m²/s (plan) "
+              "| touch-down COM ahead of feet m | ẋ m/s | ż m/s |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for r in rows:
+            lo, pl, td = (r["states"][k] or {} for k in ("lift_off", "planned_lift_off", "touch_down"))
+            g = lambda d, k, nd=3: f(d.get(k), nd)  # noqa: E731
+            print(f"| {r['kind']} | {start_cell(r['start'])} | {g(lo, 'com_ahead_of_feet')} ({g(pl, 'com_ahead_of_feet')}) | "
+                  f"{g(lo, 'xdot', 2)} ({g(pl, 'xdot', 2)}) | {g(lo, 'zdot', 2)} ({g(pl, 'zdot', 2)}) | "
+                  f"{g(lo, 'H', 1)} ({g(pl, 'H', 1)}) | {g(td, 'com_ahead_of_feet')} | {g(td, 'xdot', 2)} | "
+                  f"{g(td, 'zdot', 2)} |")
     for k in a.kinds:
         n = [r["landed"] for r in rows if r["kind"] == k]
         print(f"{k}: landed from {sum(n)} of {len(n)} start times")

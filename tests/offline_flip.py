@@ -113,7 +113,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     if x_start is not None:
         plan()
     log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], speed=[], ang_speed=[], events=[],
-               references=[], fell=None)
+               references=[], event_states=[], fell=None)
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
         if session.result is None and stamp(sim) >= start - REQUEST_LEAD:
@@ -125,6 +125,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
             log["events"].append((int(ev.kind), t_ev))
             ctl.on_contact_event(int(ev.kind), t_ev)
             st = measured(sim, t_ev)
+            log["event_states"].append((int(ev.kind), st))
             r = None
             if int(ev.kind) == 0:
                 r = session.flight_reference(st)
@@ -157,7 +158,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
         if sim.body_contacts():
             log["fell"] = sim.time
             break
-    out = {k: (np.array(v) if k not in ("events", "references", "fell") else v) for k, v in log.items()}
+    out = {k: (np.array(v) if k not in ("events", "references", "event_states", "fell") else v)
+           for k, v in log.items()}
     out.update(sim=sim, ctl=ctl, session=session)
     return out
 

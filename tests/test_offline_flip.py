@@ -125,7 +125,7 @@ def test_forward_frontflip_lands_and_stands():
 
 
 @pytest.mark.parametrize("args, kind, flight_min, turn", [
-    ((), "backflip", 0.45, -360.0),
+    (("--states",), "backflip", 0.45, -360.0),
     # flip C: off a 0.5 m platform, `flip run`'s 0.6 m forward distance; the drop lengthens the flight
     (("--platform", "0.5", "--apex", "1.2"), "frontflip", 0.60, 349.0)])
 def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
@@ -144,8 +144,17 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
     # 2.45 s: the robot is still catching the landing, so not at rest, and so not landed yet
     assert cells[2:4] == ["no", "no"], row
     assert r.stdout.splitlines()[-1].startswith(f'{{"{kind}": ')
-    if args:
+    if "--platform" in args:
         assert "distance 0.6 m, platform 0.5 m" in r.stdout
+    if "--states" in args:
+        # lift-off measured (planned) and touch-down: a backflip leaves with the COM behind its feet,
+        # rising, with negative pitch momentum, and comes down falling
+        srow = [ln for ln in r.stdout.splitlines() if ln.startswith(f"| {kind} | 0.50 |")][1]
+        cells = [c.strip() for c in srow.strip("|").split("|")]
+        lo_ahead, plan_ahead = (float(x.strip("()")) for x in cells[2].split())
+        assert lo_ahead < 0.0 and plan_ahead < 0.0
+        assert float(cells[4].split()[0]) > 2.0 and float(cells[5].split()[0]) < -30.0
+        assert float(cells[8]) < -2.0
 
 
 def test_bench_landings_at_rest_is_the_verdicts_check():
