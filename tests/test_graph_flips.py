@@ -151,10 +151,10 @@ def test_a_second_flip_on_a_running_graph_starts_where_the_first_landed(ros_grap
     the ground 0.73 s in): its JUMPING reference starts at the COM where the robot stands, and its
     FLIGHT reference at the pitch the controller tracks (unwrapped since the start: one turn down
     after a backflip), so the body turns backwards again. Whether the second backflip lands is not
-    asserted: it fell in the 2 runs made with both fixes (in one it turned 360 deg and came down on
-    a knee, the first landing having left the robot yawed 7 deg, off the plane the plan and the
-    flight assume).  If the first backflip falls (about 1 run in 5), the second is refused as
-    ``not_standing``, and the test checks that instead."""
+    asserted: it has not landed yet (it turned 360 deg and came down on a knee, the first landing
+    having left the robot yawed 7 deg; or its push-off stumbled and it fell, the direction then
+    unchecked).  If the first backflip falls, the second is refused as ``not_standing``, and the
+    test checks that instead."""
     from fslip_planner.plan import _Robot
     from flip_msgs.msg import ContactEvent
     from flip_msgs.srv import RequestFlip
@@ -229,5 +229,11 @@ def test_a_second_flip_on_a_running_graph_starts_where_the_first_landed(ros_grap
     flight2 = [r for r in data["/fslip/reference"]["refs"] if r["domain"] == 2 and r["plan_id"] == 2][0]
     phi0 = np.degrees(flight2["value"][0, flight2["output_names"].index("phi_pitch")])
     assert phi0 == pytest.approx(pitch[j], abs=3.0) and phi0 < -300.0
+    if flight2["parameters"]["flight_time"] < 0.3:
+        # the push-off stumbled (a lift-off of a few ms): the planner aborts the flip with a flight plan
+        # to the level pelvis, not a turn, and there is no turn to check the direction of
+        phi_end = np.degrees(flight2["value"][-1, flight2["output_names"].index("phi_pitch")])
+        assert abs((phi_end + 180.0) % 360.0 - 180.0) < 1.0 and abs(phi_end - phi0) < 90.0, (phi0, phi_end)
+        return
     j4 = np.searchsorted(od["t"], lo2[0] + 0.4)
     assert pitch[j4] - pitch[j] < -250.0                              # a backward turn, not a forward one

@@ -356,6 +356,11 @@ class ControllerConfig:
     # at the world angle from T1 on, with the body still ~0.8 rad short, the legs swung ~50 deg relative
     # to the pelvis in 0.1 s and threw it round (measured backflip: +1.6 rad over-rotation).
     flight_legs_on_pelvis: bool = True
+    # FLIGHT of a somersault after T1: the leg angles' weight (gains' beta_leg weight otherwise).  The foot
+    # placement outranks the pelvis pitch (weight 10): with the flywheel saturated late in the flight, a
+    # weight of 10 let the QP swing the legs to help turn the pelvis, and the feet came down 15-20 cm off
+    # their place under the COM (docs/measurements.md).  Not in a hop (no turn; it rebounded with 100).
+    somersault_beta_weight: float = 100.0
     # LANDING after a somersault: track the planner's landing re-solve (paper §III-C) or land with the
     # controller's own profiles (leg catch, bounded momentum removal).  After a hop the re-solve is
     # tracked (with the own profiles the FSLIP hop bounced: a 20 ms lift-off 0.14 s after touch-down).  Measured (tests/offline_flip.py, backflip,
@@ -501,6 +506,7 @@ class Controller:
         self._z2 = np.zeros(2)
         self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
         self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
+        self._beta_w0 = self.o_beta[0].weight
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
         self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
         self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
@@ -876,8 +882,10 @@ class Controller:
                 # against ~80 rad/s^2) and land with the feet far ahead
                 a_p = -float(self.u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
                 off = np.array([self.pitch - th_T, w_p, a_p])
+            w_beta = self.cfg.somersault_beta_weight if self._somersault else self._beta_w0
             for k in range(2):
                 b = -(bplus if bplus is not None else f["beta"][k][0])
+                self.o_beta[k].weight = w_beta
                 outs += [self.o_beta[k], self.o_toe[k]]
                 bd = d("beta_leg", [b])
                 des += [Desired(bd.value - off[0], bd.d_value - off[1], bd.dd_value - off[2]),
