@@ -140,11 +140,11 @@ def test_controller_overrides_from_json():
     merged into the defaults, domains given by name or number, and anything else is refused with
     the reason, before a controller is built."""
     from tsc_controller.domains import DEFAULT_GAINS, JUMPING_GAINS, config_overrides
-    o = config_overrides('{"cop_margin_domains": {"JUMPING": 0.2, "3": 0.1}, "jumping_gains": {"com": [100, 100, 20]},'
+    o = config_overrides('{"cop_margin_domains": {"JUMPING": 0.2, "3": 0.1}, "jumping_gains": {"H_pitch": [3, 10, 0]},'
                          ' "landing_moment": 8, "per_foot_contact": false}')
     assert o["cop_margin_domains"] == {int(Domain.JUMPING): 0.2, int(Domain.LANDING): 0.1}
-    assert o["jumping_gains"]["com"] == (100.0, 100.0, 20.0)
-    assert o["jumping_gains"]["H_pitch"] == JUMPING_GAINS["H_pitch"]
+    assert o["jumping_gains"]["H_pitch"] == (3.0, 10.0, 0.0)
+    assert o["jumping_gains"]["com"] == JUMPING_GAINS["com"]
     assert o["landing_moment"] == 8.0 and o["per_foot_contact"] is False
     ctl = Controller(export_mjcf(), **o)
     assert ctl.cfg.cop_margin_domains[int(Domain.JUMPING)] == 0.2 and ctl.cfg.gains == DEFAULT_GAINS

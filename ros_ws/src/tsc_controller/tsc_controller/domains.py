@@ -222,13 +222,14 @@ DEFAULT_GAINS = {
     "axis": (10.0, 100.0, 20.0),
 }
 
-# JUMPING overrides (name: (weight, kp, kd)): the momentum is the task of the push-off (H_pitch weight 3:
-# with 1, the GRF-shaping QP lets H_pitch chatter and the feet unload early).  COM weight 100 as on the
-# ground: with 10 the COM ran ahead of the plan and the jumps left too fast forward (measured, motor
+# JUMPING overrides (name: (weight, kp, kd)).  H_pitch keeps its ground weight, 1: with 3 the QP unloaded
+# the feet to shape the momentum (the COM ahead of the centre of pressure, less normal force turns the
+# body faster): flip A's feet left the ground 0.1 s into its crouch (docs/measurements.md).  COM weight
+# 100 as on the ground: with 10 the COM ran ahead of the plan and the jumps left too fast forward (measured, motor
 # speed scale 3, apex 1.3 m, tests/offline_flip.py: frontflip +0.86 m/s against -0.23 planned, COM
 # 0.25 m ahead; backflip +0.70 against +0.23); with 100 and the JUMPING CoP margin (ControllerConfig)
 # -0.12 and +0.20 m/s, COM within 0.02 m of the plan.
-JUMPING_GAINS = {"H_pitch": (3.0, 10.0, 0.0), "com": (100.0, 100.0, 20.0)}
+JUMPING_GAINS = {"com": (100.0, 100.0, 20.0)}
 
 # STANDING overrides: COM kd 40.  With 20 a push rocked the standing robot from foot to foot without
 # end (the QP took the weight off one foot, then the other: a 75 N, 0.1 s sideways push at the pelvis
