@@ -335,8 +335,9 @@ class Robot:
 #: The paper's robot (the default) and the design studies a user asks for by name (docs/robots.md
 #: gives the evidence for each).
 ROBOTS = {r.name: r for r in (
-    Robot("cassie", about="Cassie as published (Agility's motors and the torque-speed curve of its "
-                          "simulators) with flywheel I of Table I at 195 N*m: the paper's robot"),
+    Robot("cassie", about="Cassie as published (Agility's motors: gear, torque limit, no-load speed) "
+                          "with flywheel I of Table I at 195 N*m: the paper's robot (torque-speed envelope: "
+                          "motor_limits, linear from rest while driving; docs/robots.md)"),
     Robot("cassie-legs3-fw260", motor_speed_scale=3.0, flywheel_torque=260.0,
           about="design study: leg motors' no-load speeds x3 and a 260 N*m flywheel motor (flywheel I)"),
 )}
