@@ -126,7 +126,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     sc = StateConverter(ctl.dyn)
     read_state = NodeStateReader(sc, sim) if node_state else sc.from_simulator
     if plant is not None:
-        read_state = plant.state_reader(read_state, sim)
+        read_state = plant.state_reader(read_state, sc, sim)
     session = FlipSession(kind, **request)
     start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
 
