@@ -45,10 +45,12 @@ def test_ground_offset_moves_the_landing_ground_only(reference, offset):
            for n in ("ground", "landing_slab", "takeoff_slab") if geom(sim, n) >= 0}
     if offset > 0:
         assert top == pytest.approx({"ground": 0.0, "landing_slab": offset})
-        assert m.geom_pos[geom(sim, "landing_slab")][0] - m.geom_size[geom(sim, "landing_slab")][0] == pytest.approx(0.4)
+        g = geom(sim, "landing_slab")
+        assert m.geom_pos[g][0] - m.geom_size[g][0] == pytest.approx(0.4)             # from x = 0.4 on
     else:
         assert top == pytest.approx({"ground": offset, "takeoff_slab": 0.0})
-        assert m.geom_pos[geom(sim, "takeoff_slab")][0] + m.geom_size[geom(sim, "takeoff_slab")][0] == pytest.approx(0.4)
+        g = geom(sim, "takeoff_slab")
+        assert m.geom_pos[g][0] + m.geom_size[g][0] == pytest.approx(0.4)             # up to x = 0.4
     assert np.array_equal(sim.standing_qpos, reference[0].standing_qpos)     # stands on the same ground
     same_controller(ctl, reference[1])
 

@@ -55,7 +55,7 @@ KNOBS = {
     "delay_steps": (0, "commands applied this many whole steps late"),
     "joint_noise": (0.0, "std of Gaussian noise on the joint positions (rad) and velocities (rad/s) read"),
     "imu_noise": (0.0, "std of Gaussian noise on the pelvis orientation (rad) and angular velocity (rad/s) read"),
-    "push": (0.0, "impulse on the pelvis along world x (N*s), applied over PUSH_DURATION"),
+    "push": (0.0, "impulse on the pelvis along world x (N*s), applied over 10 ms"),
     "push_phase": ("stance", "when the push comes: 'stance' (0.2 s after the jump's start) or 'flight' "
                              "(0.1 s after lift-off)"),
     "start": (0.5, "the jump's start time (s)"),
@@ -276,6 +276,14 @@ def build(sample: Sample):
     return sim, ctl, Plant(sample, np.random.default_rng(sample.seed), sim)
 
 
+def failed_result(sample: Sample, error: str | None) -> dict:
+    """A sample's result before (or without) a run: the record, outcome ``error``."""
+    return {"sample_id": sample.id, "flip": sample.flip, "knobs": json.dumps(sample.knobs, sort_keys=True),
+            "seed": sample.seed, **{k: sample.knob(k) for k in KNOBS},
+            "outcome": "error", "limit": None, "error": error, "net_rotation_deg": None, "fell_at_s": None,
+            "touchdown_s": None, "peak_flywheel_rpm": None, "sim_s": None, "wall_s": 0.0}
+
+
 def run_sample(sample: Sample) -> dict:
     """Run a sample offline; its result: the record's fields, ``outcome`` (one of OUTCOMES),
     ``limit`` (a rejected request's), ``error``, net rotation (deg), fall and touch-down times (s),
@@ -285,10 +293,7 @@ def run_sample(sample: Sample) -> dict:
     from . import offline
     from .summary import RPM_PER_RADPS
     t0 = time.perf_counter()
-    res = {"sample_id": sample.id, "flip": sample.flip, "knobs": json.dumps(sample.knobs, sort_keys=True),
-           "seed": sample.seed, **{k: sample.knob(k) for k in KNOBS},
-           "outcome": "error", "limit": None, "error": None, "net_rotation_deg": None, "fell_at_s": None,
-           "touchdown_s": None, "peak_flywheel_rpm": None, "sim_s": None}
+    res = failed_result(sample, None)
     flip = FLIPS[sample.flip]
     try:
         sim, ctl, plant = build(sample)
