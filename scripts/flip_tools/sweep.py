@@ -301,7 +301,11 @@ def cmd_sweep(args, log=print) -> int:
     out = Path(args.out or f"runs/sweep-{time.strftime('%Y%m%d-%H%M%S')}")
     write_definition(out, {k: v for k, v in vars(args).items() if k != "func"}, samples)
     t0 = time.monotonic()
-    rows = run_sweep(samples, out, args.address, args.workers, progress=not args.no_progress, log=log)
+    try:
+        rows = run_sweep(samples, out, args.address, args.workers, progress=not args.no_progress, log=log)
+    except KeyboardInterrupt:
+        log(f"sweep: interrupted; the finished samples are in {out / 'results'} (the same command resumes)")
+        return 130
     log(f"sweep: {len(rows)} result(s) in {out / 'results'} ({time.monotonic() - t0:.1f} s)")
     text, files = sweep_report.report(rows, out)
     log(text)
