@@ -176,3 +176,17 @@ def test_no_knob_is_the_unperturbed_run():
     sim0, ctl0, _ = P.build(s)
     r0 = offline.run(f.kind, seconds=1.2, start=0.3, sim=sim0, controller=ctl0, every=10, **req)
     assert np.array_equal(sim.data.qpos, sim0.data.qpos) and np.array_equal(r["pitch"], r0["pitch"])
+
+
+def test_the_models_own_friction_is_the_unperturbed_run():
+    """friction 1.0 (the model's own) edits the model (terrain priority, constants recomputed) and
+    changes nothing else: the run is the unperturbed one to the bit."""
+    f = P.FLIPS["B"]
+    req = dict(apex_height=f.apex, forward_distance=f.distance, platform_height=f.platform, **P.robot_request())
+    qpos = []
+    for knobs in ({}, {"friction": 1.0}):
+        sim, ctl, plant = P.build(P.Sample("B", knobs))
+        offline.run(f.kind, seconds=1.2, start=0.3, sim=sim, controller=ctl, every=10, plant=plant, **req)
+        qpos.append(sim.data.qpos.copy())
+    assert sim.model.geom_priority[geom(sim, "ground")] == 1
+    assert np.array_equal(qpos[0], qpos[1])
