@@ -2,6 +2,7 @@
 run one by one without Ray, on Ray embedded on this machine and on a two-node cluster; a rerun skips
 the samples already done; the report's tables and plots.  Short samples (1 s of simulation from a
 jump started at 0.3 s) keep it to a couple of minutes."""
+import ast
 import os
 import shutil
 import subprocess
@@ -70,6 +71,43 @@ def test_local_sweep_gives_the_records_of_one_by_one_runs(local_sweep, one_by_on
     assert len({r["outcome"] for r in one_by_one.values()}) >= 1
     assert "| joint_noise | 0.01 |" in second and "outcomes" in second
     assert (out / "summary.md").exists() and (out / "landing_rate_joint_noise.png").stat().st_size > 1000
+
+
+LISTENERS = r"""
+import os, re, subprocess, sys
+sys.path.insert(0, sys.argv[1])
+from flip_tools import sweep
+sweep.start_ray(None, 1)
+import ray
+ray.get(ray.remote(lambda: 1).remote())          # a worker up too
+
+
+def ours(pid):
+    while pid > 1:
+        if pid == os.getpid():
+            return True
+        pid = int(open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[1])
+    return False
+
+
+out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True).stdout
+mine = [(ln.split()[3], int(m)) for ln in out.splitlines() for m in re.findall(r"pid=(\d+)", ln) if ours(int(m))]
+ray.shutdown()
+print(mine)
+"""
+
+
+def test_embedded_ray_listens_on_127_0_0_1_only():
+    """Every socket that the embedded Ray's processes listen on is bound to 127.0.0.1."""
+    if shutil.which("ss") is None:
+        pytest.skip("no ss to list the listening sockets")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    r = subprocess.run([sys.executable, "-c", LISTENERS, str(REPO / "scripts")], capture_output=True, text=True,
+                       timeout=300, env=env)
+    assert r.returncode == 0, r.stderr
+    listening = ast.literal_eval(r.stdout.strip().splitlines()[-1])
+    assert len(listening) >= 3                                  # GCS, raylet, driver, worker
+    assert all(addr.rsplit(":", 1)[0] in ("127.0.0.1", "[::ffff:127.0.0.1]") for addr, _ in listening), listening
 
 
 def test_a_rerun_skips_the_samples_done(local_sweep):
