@@ -190,3 +190,10 @@ def test_the_models_own_friction_is_the_unperturbed_run():
         qpos.append(sim.data.qpos.copy())
     assert sim.model.geom_priority[geom(sim, "ground")] == 1
     assert np.array_equal(qpos[0], qpos[1])
+
+
+def test_a_request_the_planner_refuses_is_rejected_with_its_limit(monkeypatch):
+    monkeypatch.setitem(P.FLIPS, "X", P.Flip("backflip", 3.0))      # an apex the knees cannot reach
+    r = P.run_sample(P.Sample("X", {"seconds": 1.0}))
+    assert r["outcome"] == "rejected" and r["limit"] == "knee torque–speed envelope"
+    assert "apex 3.00 m" in r["error"] and r["sim_s"] is None
