@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Landing rate of the somersaults without ROS: `tests/offline_flip.py` (simulator, planner and
+"""Landing rate of the somersaults without ROS: `flip_tools.offline` (simulator, planner and
 controller wired as the node graph wires them, one process) from a set of start times, two flips at
 a time.  Prints a table: per start time whether the flip landed (no body but the feet touched the
 ground until the end, pelvis upright at +-2pi and above 0.8 m, and at rest as `flip run`'s verdict
@@ -25,17 +25,17 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
 from flip_tools.flip_request import request_distance  # noqa: E402
-from flip_tools.summary import LANDING_CRITERIA  # noqa: E402
+from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: E402,F401
+from flip_tools.summary import LANDING_CRITERIA  # noqa: E402,F401
 START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
-EXPECTED = {"backflip": -2 * math.pi, "frontflip": 2 * math.pi}
+EXPECTED = EXPECTED_TURN
 
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
         distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None) -> dict:
-    sys.path.insert(0, str(REPO / "tests"))
     import numpy as np
 
-    import offline_flip as of
+    from flip_tools import offline as of
     from cassie_flip_sim.model import Scenario, export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller import Controller
@@ -47,9 +47,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
                      **config_overrides(controller))
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex, x_start=x_start,
                forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque)
-    ev = r["events"]
-    lo = next((t for k, t in ev if k == 0), None)
-    td = next((t for k, t in ev if k == 1 and lo is not None and t > lo), None)
+    lo, td = lift_off_touch_down(r["events"])
     out = {"kind": kind, "start": start, "fell_at": r["fell"], "flight_s": None, "td_rotation_deg": None,
            "td_axis_tilt_deg": None}
     if td is not None:
@@ -63,10 +61,8 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
                      "planned_lift_off": None if lo_plan is None else
                      {"com_ahead_of_feet": lo_plan["x"], "xdot": lo_plan["xdot"], "zdot": lo_plan["zdot"],
                       "H": lo_plan["momentum"]}}
-    z_end, pitch_end = float(r["z"][-1]), float(r["pitch"][-1])
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
-    out["landed"] = bool(r["fell"] is None and td is not None and z_end > 0.8
-                         and abs(pitch_end - EXPECTED[kind]) < 0.3 and out["at_rest"])
+    out["landed"] = outcome(r, kind) == "landed"
     return out
 
 
@@ -85,16 +81,6 @@ def start_cell(start: float) -> str:
     e.g. 1.5555 s, to re-run it offline)."""
     text = f"{start:.4f}".rstrip("0")
     return text + "0" * max(0, 2 - len(text.split(".")[1]))
-
-
-def at_rest(t, speed, ang_speed, criteria=LANDING_CRITERIA) -> bool:
-    """`flip run`'s at-rest check (flip_tools.summary) on a run's samples: over the last
-    ``rest_window_s`` the pelvis' speed and angular speed stay below their limits."""
-    import numpy as np
-    t = np.asarray(t)
-    win = t >= t[-1] - criteria["rest_window_s"]
-    return bool(np.max(np.asarray(speed)[win]) < criteria["rest_max_speed_mps"]
-                and np.max(np.asarray(ang_speed)[win]) < criteria["rest_max_angular_speed_radps"])
 
 
 def main() -> int:
@@ -129,7 +115,7 @@ def main() -> int:
                             a.distance, a.platform, a.ground_offset, a.x_start)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
-    print(f"offline flips (tests/offline_flip.py): motor speed scale {a.motor_speed_scale}, flywheel "
+    print(f"offline flips (flip_tools.offline): motor speed scale {a.motor_speed_scale}, flywheel "
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
           f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
     print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg |")

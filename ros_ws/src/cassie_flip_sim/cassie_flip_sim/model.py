@@ -21,7 +21,7 @@ FlywheelSpec = Union[str, P.Flywheel, Tuple[float, float], None]
 
 #: Contact geom names per foot (heel, toe).
 FOOT_GEOMS = {"left": ("left_foot_heel", "left_foot_toe"), "right": ("right_foot_heel", "right_foot_toe")}
-TERRAIN_GEOMS = ("ground", "start_platform", "landing_slab")
+TERRAIN_GEOMS = ("ground", "start_platform", "landing_slab", "takeoff_slab")
 #: contact bits: feet (contype 1) and upper body (contype 2) collide with terrain only
 FOOT_CONTYPE, BODY_CONTYPE = 1, 2
 #: bodies (by name suffix) whose geoms collide with the terrain besides the pelvis and flywheel
@@ -156,9 +156,11 @@ def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywh
 @dataclass(frozen=True)
 class Scenario:
     """Terrain: ground z = 0; optional start platform (top at ``start_height``, front edge at
-    world x = ``platform_edge_x``, extending backwards); optional landing slab (top at
-    ``landing_height``, from world x = ``landing_start_x`` forwards).  The planner is told
-    ``planner_landing_height`` (paper flip D: told 0, truth +0.1 m).  The robot stands at x = 0."""
+    world x = ``platform_edge_x``, extending backwards); optional landing area at ``landing_height``
+    from world x = ``landing_start_x`` forwards: raised, a slab on the ground; lowered (negative),
+    the ground plane at that height and a take-off slab, top at z = 0, behind ``landing_start_x``.
+    The planner is told ``planner_landing_height`` (paper flip D: told 0, truth +0.1 m).  The robot
+    stands at x = 0."""
     name: str = "flat"
     start_height: float = 0.0
     platform_edge_x: float = 0.15
@@ -221,7 +223,8 @@ def build_spec(flywheel: FlywheelSpec = "I", scen: Union[str, Scenario, None] = 
                 if g.contype == 0 and g.name not in sum(FOOT_GEOMS.values(), ()):
                     g.contype = BODY_CONTYPE
 
-    terrain("ground", mujoco.mjtGeom.mjGEOM_PLANE, [0, 0, 0.125], [0, 0, 0], [0.25, 0.3, 0.35, 1])
+    lowered = min(sc.landing_height, 0.0)
+    terrain("ground", mujoco.mjtGeom.mjGEOM_PLANE, [0, 0, 0.125], [0, 0, lowered], [0.25, 0.3, 0.35, 1])
     if sc.start_height > 0:
         h = sc.start_height
         terrain("start_platform", mujoco.mjtGeom.mjGEOM_BOX, [1.5, 1.5, h / 2],
@@ -230,6 +233,9 @@ def build_spec(flywheel: FlywheelSpec = "I", scen: Union[str, Scenario, None] = 
         h = sc.landing_height
         terrain("landing_slab", mujoco.mjtGeom.mjGEOM_BOX, [3.0, 1.5, h / 2],
                 [sc.landing_start_x + 3.0, 0, h / 2], [0.35, 0.45, 0.35, 1])
+    elif lowered < 0:
+        terrain("takeoff_slab", mujoco.mjtGeom.mjGEOM_BOX, [3.0, 1.5, -lowered / 2],
+                [sc.landing_start_x - 3.0, 0, lowered / 2], [0.45, 0.4, 0.35, 1])
     light = wb.add_light()
     light.pos, light.dir = [0, -1, 4], [0, 0.25, -1]
     cam = wb.add_camera()
