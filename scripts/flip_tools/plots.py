@@ -1,7 +1,7 @@
 """PNG plots of a run from its bag (matplotlib Agg; no ROS import), after the paper's Fig. 6.
 
 fig6.png      pitch momentum (planned per domain vs. measured: recomputed from /joint_states + /odom
-              with the model on /robot_description, flywheel share too), leg length,
+              with the model on /robot_description_mjcf, flywheel share too), leg length,
               ground normal force, x_com, pelvis pitch (planned vs. /odom), flywheel torque and
               speed — each panel shows what the bag holds and says "not in the bag" otherwise.
 pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
