@@ -545,8 +545,8 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["outcome"] == "landed" and s["net_rotation_deg"] == pytest.approx(-360, abs=1)
     assert s["response"]["accepted"] is True
-    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
-                                                                      "tsc": 0}
+    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
+                                                                      "planner": 0, "tsc": 0}
     # the tool ends the run at the planned end (touch-down + settle) and stops the sim there
     assert s["processes"]["sim"]["stopped_by"] == "SIGINT"
     end = json.loads((out / "run.json").read_text())["end_sim_time"]
