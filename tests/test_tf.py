@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from ros_harness import FLIP, new_domain  # noqa: F401  (puts scripts/ on sys.path)
 
-from cassie_flip_sim.link_transforms import LinkTransforms, link_poses, matrix, rotvec_to_quat
+from cassie_flip_sim.link_transforms import LinkTransforms, link_poses, matrix, quat_xyzw, rotvec_to_quat
 from cassie_flip_sim.simulator import Simulator
 from cassie_flip_sim.urdf import ball_angles, export_urdf
 
@@ -74,6 +74,13 @@ def test_ball_joints_need_the_euler_conversion():
     R = Rotation.from_rotvec(rv).as_matrix()
     a, b, c = ball_angles(rotvec_to_quat(rv))
     np.testing.assert_allclose(Rotation.from_euler("XYZ", [a, b, c]).as_matrix(), R, atol=1e-12)
+
+
+def test_quaternions_of_rotation_matrices():
+    half_turns = np.pi * np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, -0.8, 0], [0, 0.8, 0.6]])
+    rots = Rotation.concatenate([Rotation.random(2000, random_state=3), Rotation.from_rotvec(half_turns)])
+    q, ref = quat_xyzw(rots.as_matrix()), rots.as_quat()
+    assert np.minimum(np.abs(q - ref).max(1), np.abs(q + ref).max(1)).max() < 1e-12
 
 
 def test_tf_template_serializes_the_poses_and_stamp():

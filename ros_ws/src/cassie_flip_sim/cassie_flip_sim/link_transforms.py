@@ -16,7 +16,6 @@ from typing import Dict, Iterable, List, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from .urdf import ball_angles
 
@@ -31,6 +30,19 @@ def rotvec_to_quat(rv) -> np.ndarray:
     if angle < 1e-12:
         return np.array([1.0, *(0.5 * rv)])
     return np.r_[np.cos(0.5 * angle), np.sin(0.5 * angle) / angle * rv]
+
+
+def quat_xyzw(R: np.ndarray) -> np.ndarray:
+    """``(n, 4)`` unit quaternions (x, y, z, w) of ``(n, 3, 3)`` rotation matrices (Shepperd: each
+    from its largest component)."""
+    d0, d1, d2 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    s01, s02, s12 = R[:, 0, 1] + R[:, 1, 0], R[:, 0, 2] + R[:, 2, 0], R[:, 1, 2] + R[:, 2, 1]
+    a21, a02, a10 = R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]
+    t = np.stack([1 + d0 - d1 - d2, 1 - d0 + d1 - d2, 1 - d0 - d1 + d2, 1 + d0 + d1 + d2], axis=1)
+    cands = np.stack([np.stack([t[:, 0], s01, s02, a21], 1), np.stack([s01, t[:, 1], s12, a02], 1),
+                      np.stack([s02, s12, t[:, 2], a10], 1), np.stack([a21, a02, a10, t[:, 3]], 1)], axis=1)
+    q = cands[np.arange(len(R)), np.argmax(t, axis=1)]      # = 4 q_i q, q_i the largest component
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
 def pose7(T: pin.SE3) -> np.ndarray:
@@ -138,7 +150,7 @@ class LinkTransforms:
         pin.forwardKinematics(self.model, self.data, self.q)
         liMi = self.data.liMi
         T = self._parent_inv @ np.array([liMi[j].homogeneous for j in self._joint]) @ self._child
-        return np.concatenate([T[:, :3, 3], Rotation.from_matrix(T[:, :3, :3]).as_quat()], axis=1)
+        return np.concatenate([T[:, :3, 3], quat_xyzw(T[:, :3, :3])], axis=1)
 
     def moving(self) -> List[Tuple[str, str, np.ndarray]]:
         """``(parent, child, pose)`` of every moving joint (order of :attr:`edges`) at the positions

@@ -8,9 +8,9 @@ gives them (the math, ROS-free, in ``link_transforms``).
   message stamped with it: ``world`` -> ``pelvis`` (the ``/odom`` pose, its frame ids) and every
   moving URDF joint's parent link -> child link.
 
-The simulator's per-step streams (2 kHz) are taken as serialized bytes every ``POLL_S`` (not a
-wake-up per message), only the grid's are read (``cdr`` views), and /tf is written into a
-serialized template (:class:`TfTemplate`). The node runs beside the lockstep, off its CPU
+The simulator's per-step streams (2 kHz) are taken every ``POLL_S`` (not a wake-up per message)
+by ``_rcl_io.take_on_grid``, which hands over only the grid's messages (serialized: read as
+``cdr`` views), and /tf is written into a serialized template (:class:`TfTemplate`). The node runs beside the lockstep, off its CPU
 (``lockstep.avoid_lockstep_cpu``; niced by ``flip``): it queues (deep best-effort readers) instead
 of slowing the simulator. A stop (SIGINT, SIGTERM) ends the loop within ``POLL_S``, after which the
 node publishes what it had already received (its own handlers, not rclpy's, which would shut the
@@ -34,9 +34,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+from . import _rcl_io
 from .link_transforms import LinkTransforms
 from .lockstep import (LATCHED_QOS, CdrCursor, MessageReader, SubscriptionSet, avoid_lockstep_cpu,
-                       joint_state_layout, odometry_layout, read_stamp_ns, scheduling_note)
+                       joint_state_layout, odometry_layout, scheduling_note)
 from .node_stop import run_until_stopped
 
 #: the simulator's streams, read beside the lockstep: ~0.5 s of 2 kHz states queue while it lags
@@ -52,6 +53,10 @@ TF_STATIC_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability
 MAX_PENDING = 400
 #: wall time between two takes of what has queued: the node wakes at this rate, not per message
 POLL_S = 0.01
+
+
+def _ignore(_msg):
+    return None
 
 
 def transform(parent, child, pose, msg=None):
@@ -108,16 +113,16 @@ def frame_ids(odom_raw):
 
 
 class StatePublisher:
-    """The node: subscriptions taken through a wait set (no executor), two tf publishers."""
+    """The node: subscriptions taken without an executor, two tf publishers."""
 
     def __init__(self):
         self.node = rclpy.create_node('state_publisher')
         rate = float(self.node.declare_parameter('publish_rate', 200.0).value)
         self.period_ns = int(round(1e9 / rate))
-        self.subs = SubscriptionSet(self.node, [(JointState, '/joint_states', DEEP_STREAM_QOS),
-                                                (Odometry, '/odom', DEEP_STREAM_QOS),
-                                                (String, '/robot_description', LATCHED_QOS)],
-                                    raw=('/joint_states', '/odom'))
+        self.subs = SubscriptionSet(self.node, [(String, '/robot_description', LATCHED_QOS)])
+        # the per-step streams: taken by _rcl_io.take_on_grid (no executor calls their callbacks)
+        self.streams = {topic: self.node.create_subscription(t, topic, _ignore, DEEP_STREAM_QOS, raw=True)
+                        for t, topic in ((JointState, '/joint_states'), (Odometry, '/odom'))}
         self.pub_tf = self.node.create_publisher(TFMessage, '/tf', TF_QOS)
         self.pub_static = self.node.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
         self.model = None               # LinkTransforms of the URDF
@@ -142,14 +147,11 @@ class StatePublisher:
         self.node.get_logger().info(f'model from /robot_description: root {model.root}, '
                                     f'{len(model.edges)} moving and {len(model.fixed)} fixed joints')
 
-    def _take(self, taken):
-        for topic, msg in taken:
-            if topic == '/robot_description':
-                self._on_description(msg.data)
-                continue
-            ns = read_stamp_ns(msg)
-            if ns % self.period_ns == 0:
-                self.pending[topic][ns] = msg
+    def _take(self):
+        for _, msg in self.subs.take_all():
+            self._on_description(msg.data)
+        for topic, sub in self.streams.items():
+            self.pending[topic].update(_rcl_io.take_on_grid(sub.handle.pointer, self.period_ns))
 
     def _publish(self, ns, js_raw, odom_raw):
         js, odom = self.read_js(js_raw), self.read_odom(odom_raw)
@@ -172,15 +174,16 @@ class StatePublisher:
                 del d[ns]
 
     def run(self):
-        cpu0 = time.process_time()
+        cpu0 = time.process_time(), time.thread_time()
         while not self.stop_requested and rclpy.ok():
             time.sleep(POLL_S)
-            self._take(self.subs.take_all())
+            self._take()
             self._flush()
-        self._take(self.subs.take_all())      # what came before the stop
+        self._take()                          # what came before the stop
         self._flush()
-        self.node.get_logger().info(f'published /tf for {self.published} stamps; '
-                                    f'cpu {time.process_time() - cpu0:.2f} s')
+        main = time.thread_time() - cpu0[1]
+        self.node.get_logger().info(f'published /tf for {self.published} stamps; cpu s: main thread '
+                                    f'{main:.2f}, other threads {time.process_time() - cpu0[0] - main:.2f}')
         return 0
 
 
@@ -194,6 +197,8 @@ def main(args=None):
 
     def close():
         node.subs.destroy()
+        for sub in node.streams.values():
+            node.node.destroy_subscription(sub)
         node.node.destroy_node()
         rclpy.try_shutdown()
     return run_until_stopped(node.run, close)
