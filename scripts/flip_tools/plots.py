@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .bag import BagData, load_bag  # noqa: E402
+from .bag import NOT_SUMMARIZED, BagData, load_bag  # noqa: E402
 from .measured import measured_outputs  # noqa: E402
 from .summary import odom_time, pitch_unwrapped, tilt  # noqa: E402
 
@@ -28,7 +28,7 @@ DOMAIN_COLORS = {0: "#ffffff", 1: "#fff3d6", 2: "#dcecff", 3: "#e3f5e1"}
 
 
 def plot_bag(bag: str | Path, out_dir: str | Path, data: BagData | None = None) -> list[Path]:
-    data = data or load_bag(bag)
+    data = data or load_bag(bag, exclude=NOT_SUMMARIZED)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [_fig6(data, out / "fig6.png"), _pelvis(data, out / "pelvis.png"),
