@@ -31,7 +31,8 @@ def flip_typestore():
     for pkg in WORKSPACE_MSG_PACKAGES:
         dirs = msg_dirs(pkg)
         if not dirs:
-            raise FileNotFoundError(f"{pkg} .msg files not found (ros_ws/src/{pkg}/msg or <venv>/share/{pkg}/msg)")
+            raise FileNotFoundError(f"{pkg} .msg files not found "
+                                    f"(ros_ws/src/{pkg}/msg or <venv>/share/{pkg}/msg)")
         for f in sorted((dirs[0] / "msg").glob("*.msg")):
             types.update(get_types_from_msg(f.read_text(), f"{pkg}/msg/{f.stem}"))
     store.register(types)

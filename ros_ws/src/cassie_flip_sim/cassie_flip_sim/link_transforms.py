@@ -97,7 +97,8 @@ class LinkTransforms:
         if any(self.model.parents[j] != fr[self._frame[p]].parentJoint
                for j, (p, _, _) in zip(self._joint, self.edges)):
             raise ValueError("a moving joint's parent link is not on its parent joint")
-        self._parent_inv = np.array([fr[self._frame[p]].placement.inverse().homogeneous for p, _, _ in self.edges])
+        self._parent_inv = np.array([fr[self._frame[p]].placement.inverse().homogeneous
+                                     for p, _, _ in self.edges])
         self._child = np.array([fr[self._frame[c]].placement.homogeneous for _, c, _ in self.edges])
         self._plan = None           # (names, plan) of the last name list seen by set_positions
 
@@ -107,14 +108,16 @@ class LinkTransforms:
         out = []
         for n in names:
             base = n[:-2]
-            if n.endswith("_x") and all(f"{base}_{s}" in index and f"{base}_{s}" in self._q_slot for s in "xyz"):
+            if n.endswith("_x") and all(f"{base}_{s}" in index and f"{base}_{s}" in self._q_slot
+                                        for s in "xyz"):
                 out.append((index[f"{base}_x"], index[f"{base}_y"], index[f"{base}_z"], base))
         return out
 
     def _make_plan(self, names: Sequence[str]):
         balls = self._balls(names)
         in_ball = {i for b in balls for i in b[:3]}
-        scalars = [(i, *self._q_slot[n]) for i, n in enumerate(names) if n in self._q_slot and i not in in_ball]
+        scalars = [(i, *self._q_slot[n]) for i, n in enumerate(names)
+                   if n in self._q_slot and i not in in_ball]
         ball_slots = [(b[:3], [self._q_slot[f"{b[3]}_{s}"] for s in "xyz"]) for b in balls]
         return scalars, ball_slots
 
@@ -158,7 +161,8 @@ class LinkTransforms:
         return [(p, c, pose) for (p, c, _), pose in zip(self.edges, self.moving_poses())]
 
 
-def link_poses(root: str, root_pose, transforms: Iterable[Tuple[str, str, np.ndarray]]) -> Dict[str, np.ndarray]:
+def link_poses(root: str, root_pose,
+               transforms: Iterable[Tuple[str, str, np.ndarray]]) -> Dict[str, np.ndarray]:
     """4x4 pose in the frame of ``root_pose`` of every link reached from ``root`` through the
     ``(parent, child, pose)`` transforms (a tf tree's replay)."""
     children: Dict[str, list] = {}

@@ -10,9 +10,9 @@ gives them (the math, ROS-free, in ``link_transforms``).
 
 The simulator's per-step streams (2 kHz) are taken every ``POLL_S`` (not a wake-up per message)
 by ``_rcl_io.take_on_grid``, which hands over only the grid's messages (serialized: read as
-``cdr`` views), and /tf is written into a serialized template (:class:`TfTemplate`). The node runs beside the lockstep, off its CPU
-(``lockstep.avoid_lockstep_cpu``; niced by ``flip``): it queues (deep best-effort readers) instead
-of slowing the simulator. A stop (SIGINT, SIGTERM) ends the loop within ``POLL_S``, after which the
+``cdr`` views), and /tf is written into a serialized template (:class:`TfTemplate`). The node
+runs beside the lockstep, off its CPU (``lockstep.avoid_lockstep_cpu``; niced by ``flip``): it
+queues (deep best-effort readers) instead of slowing the simulator. A stop (SIGINT, SIGTERM) ends the loop within ``POLL_S``, after which the
 node publishes what it had already received (its own handlers, not rclpy's, which would shut the
 context down first).
 """
