@@ -11,11 +11,13 @@ PIP := $(VENV)/bin/pip
 PKGS := ros_ws/src/cassie_flip_sim ros_ws/src/fslip_planner ros_ws/src/tsc_controller
 MSGS := ros_ws/src/flip_msgs
 MSG_SRCS := $(wildcard $(MSGS)/msg/*.msg $(MSGS)/srv/*.srv) $(MSGS)/CMakeLists.txt $(MSGS)/package.xml $(MSGS)/pyproject.toml
+TF2_MSGS := ros_ws/src/tf2_msgs
+TF2_MSG_SRCS := $(wildcard $(TF2_MSGS)/msg/*.msg) $(TF2_MSGS)/CMakeLists.txt $(TF2_MSGS)/package.xml $(TF2_MSGS)/pyproject.toml
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 
 .PHONY: setup demo test clean-venv
-setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-pkgs
+setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-pkgs
 
 # Debian packages: a C++ toolchain for flip_msgs, GL libraries for offscreen rendering, Debian's
 # python3.11 with venv and headers.
@@ -29,12 +31,28 @@ $(VENV)/.stamp-deps: requirements.txt
 	$(PIP) install -q -r requirements.txt
 	touch $@
 
-# flip_msgs: rosidl generation against the ROS wheels, installed straight into the venv.
-$(VENV)/.stamp-msgs: $(VENV)/.stamp-deps $(MSG_SRCS)
-	AMENT_PREFIX_PATH=$(CURDIR)/$(VENV) CMAKE_PREFIX_PATH=$(CURDIR)/$(VENV) PATH=$(CURDIR)/$(VENV)/bin:$$PATH \
-	$(PIP) install -q --no-build-isolation $(MSGS) \
-	  -C cmake.define.FLIP_MSGS_PYTHON_INCLUDE_DIRS="$$($(PY) -c 'import sysconfig,numpy;print(sysconfig.get_paths()["include"]+";"+numpy.get_include())')" \
+# rosidl generation of an interface package (1: its directory, 2: the CMake variable that takes this
+# interpreter's Python and NumPy include directories) against the ROS wheels, installed straight
+# into the venv
+rosidl_install = AMENT_PREFIX_PATH=$(CURDIR)/$(VENV) CMAKE_PREFIX_PATH=$(CURDIR)/$(VENV) PATH=$(CURDIR)/$(VENV)/bin:$$PATH \
+	$(PIP) install -q --no-build-isolation $(1) \
+	  -C cmake.define.$(2)="$$($(PY) -c 'import sysconfig,numpy;print(sysconfig.get_paths()["include"]+";"+numpy.get_include())')" \
 	  -C cmake.define.Python3_EXECUTABLE=$(CURDIR)/$(PY)
+
+# flip_msgs
+$(VENV)/.stamp-msgs: $(VENV)/.stamp-deps $(MSG_SRCS)
+	$(call rosidl_install,$(MSGS),FLIP_MSGS_PYTHON_INCLUDE_DIRS)
+	touch $@
+
+# tf2_msgs (TFMessage, for /tf and /tf_static): the PyPI ROS wheels lack it. Generated only where the
+# ROS install has none: a tf2_msgs that imports and is not this one (pip's tf2-msgs) is kept.
+$(VENV)/.stamp-tf2-msgs: $(VENV)/.stamp-deps $(TF2_MSG_SRCS)
+	@if $(PY) -c 'import tf2_msgs.msg' 2>/dev/null && ! $(PIP) show -q tf2-msgs >/dev/null 2>&1; then \
+	  echo "tf2_msgs: the ROS install's ($$($(PY) -c 'import tf2_msgs;print(tf2_msgs.__path__[0])')), not generated"; \
+	else \
+	  echo "tf2_msgs: generating $(TF2_MSGS)"; \
+	  $(call rosidl_install,$(TF2_MSGS),ROSIDL_PYTHON_INCLUDE_DIRS); \
+	fi
 	touch $@
 
 # tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~2 min) here too, and

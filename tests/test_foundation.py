@@ -232,7 +232,8 @@ def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     out = tmp_path / "rec"
-    topics = ["/motor_command", "/contact_events", "/fslip/reference", "/robot_description", "/chatter"]
+    topics = ["/motor_command", "/contact_events", "/fslip/reference", "/robot_description",
+              "/robot_description_mjcf", "/chatter"]
     ros_graph.start("recorder", [sys.executable, str(FLIP), "record", *topics, "--out", str(out)])
     tn = ros_graph.test_node
     status = tn.collect(String, "/flip_recorder/status", QoSProfile(depth=10))
@@ -245,8 +246,9 @@ def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
     p_ev = n.create_publisher(ContactEvent, "/contact_events", latched(10))
     p_ref = n.create_publisher(FlipReference, "/fslip/reference", latched(5))
     p_desc = n.create_publisher(String, "/robot_description", latched(1))
+    p_mjcf = n.create_publisher(String, "/robot_description_mjcf", latched(1))
     p_chat = n.create_publisher(String, "/chatter", 10)   # not in the contract: type+QoS from the graph
-    pubs = [p_cmd, p_ev, p_ref, p_desc, p_chat]
+    pubs = [p_cmd, p_ev, p_ref, p_desc, p_mjcf, p_chat]
     tn.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs), what="recorder matched")
 
     for i in range(5):
@@ -260,12 +262,13 @@ def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
                         d_value=[0.0] * 6, dd_value=[0.0] * 6, parameter_names=["T1"], parameter_values=[0.3],
                         flight_time=0.55, rotation_to_go=-2 * math.pi, solve_time=0.8, iterations=42)
     p_ref.publish(ref)
-    p_desc.publish(String(data="<mujoco model='cassie'/>"))
+    p_desc.publish(String(data="<robot name='cassie'/>"))
+    p_mjcf.publish(String(data="<mujoco model='cassie'/>"))
     for i in range(3):
         p_chat.publish(String(data=f"hello {i}"))
 
     expect = {"/motor_command": 5, "/contact_events": 2, "/fslip/reference": 1, "/robot_description": 1,
-              "/chatter": 3}
+              "/robot_description_mjcf": 1, "/chatter": 3}
 
     def recorded_all():
         if not status:
@@ -319,7 +322,8 @@ def test_record_writes_mcap_with_custom_types(ros_graph, tmp_path):
     r = got["/fslip/reference"][0][1]
     assert (r.plan_id, r.domain, list(r.output_names), r.iterations) == (3, 2, ["H_pitch", "L"], 42)
     assert np.allclose(r.value, ref.value) and r.rotation_to_go == pytest.approx(-2 * math.pi)
-    assert got["/robot_description"][0][1].data == "<mujoco model='cassie'/>"
+    assert got["/robot_description"][0][1].data == "<robot name='cassie'/>"
+    assert got["/robot_description_mjcf"][0][1].data == "<mujoco model='cassie'/>"
     assert [m.data for _, m in got["/chatter"]] == ["hello 0", "hello 1", "hello 2"]
     # log time is the wall-clock receive time (ns since the epoch, within this test's lifetime)
     import time
@@ -541,8 +545,8 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["outcome"] == "landed" and s["net_rotation_deg"] == pytest.approx(-360, abs=1)
     assert s["response"]["accepted"] is True
-    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
-                                                                      "tsc": 0}
+    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
+                                                                      "planner": 0, "tsc": 0}
     # the tool ends the run at the planned end (touch-down + settle) and stops the sim there
     assert s["processes"]["sim"]["stopped_by"] == "SIGINT"
     end = json.loads((out / "run.json").read_text())["end_sim_time"]

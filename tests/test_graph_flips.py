@@ -49,8 +49,8 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert s["apex_rise_m"] > 0.08
     assert abs(s["net_rotation_deg"]) < 5 and s["final_tilt_deg"] < 3
     assert s["at_rest"] is True and not events(s, "BODY_CONTACT")
-    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "sim": 0, "planner": 0,
-                                                                      "tsc": 0}
+    assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
+                                                                      "planner": 0, "tsc": 0}
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
     # the run ends where the tool planned it (touch-down + settle), not seconds later
     run = json.loads((out / "run.json").read_text())

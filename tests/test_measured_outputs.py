@@ -11,6 +11,7 @@ from flip_tools.measured import measured_outputs  # noqa: E402
 
 from cassie_flip_sim.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
+from cassie_flip_sim.urdf import export_urdf  # noqa: E402
 
 
 def test_measured_outputs_match_the_simulator():
@@ -28,7 +29,8 @@ def test_measured_outputs_match_the_simulator():
                          com=sim.com_position().copy(), H=sim.centroidal_pitch_momentum()))
     t = np.array([r["t"] for r in rows])
     arrays = {
-        "/robot_description": {"data": [export_mjcf()]},
+        "/robot_description": {"data": [export_urdf()]},
+        "/robot_description_mjcf": {"data": [export_mjcf()]},
         "/joint_states": {"t": t, "names": list(sim.joint_names), "pos": np.array([r["pos"] for r in rows]),
                           "vel": np.array([r["vel"] for r in rows]), "eff": np.zeros((len(rows), len(sim.joint_names)))},
         "/odom": {"t": t, "pos": np.array([r["p"] for r in rows]), "quat": np.array([r["q"] for r in rows]),
@@ -40,3 +42,17 @@ def test_measured_outputs_match_the_simulator():
     np.testing.assert_allclose(m["x_com"], [r["com"][0] for r in rows], atol=1e-6)
     np.testing.assert_allclose(m["H_pitch"], [r["H"] for r in rows], rtol=1e-6, atol=1e-6)
     assert np.all((m["L"] > 0.6) & (m["L"] < 1.0))
+
+
+def test_the_model_comes_from_the_mjcf_topic_or_an_older_bags_description():
+    """/robot_description_mjcf is the model; /robot_description (a URDF now) is not used, but a
+    bag from before the URDF took that topic still has its MJCF there."""
+    from flip_tools.measured import bag_mjcf
+
+    def bag(arrays):
+        return BagData(Path("."), topics={k: {"count": 1} for k in arrays}, arrays=arrays)
+    mjcf, urdf = export_mjcf(), export_urdf()
+    assert bag_mjcf(bag({"/robot_description": {"data": [urdf]},
+                         "/robot_description_mjcf": {"data": [mjcf]}})) == mjcf
+    assert bag_mjcf(bag({"/robot_description": {"data": [urdf]}})) == ""
+    assert bag_mjcf(bag({"/robot_description": {"data": [mjcf]}})) == mjcf

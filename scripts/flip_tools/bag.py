@@ -113,7 +113,13 @@ def constants(msgtype: str, store=None) -> dict[str, int]:
         return {}
 
 
-def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
+#: topics the summary and plots do not read: left out by load_bag(..., exclude=NOT_SUMMARIZED) (the
+#: robot's /tf at 200 Hz, 28 transforms a message, is most of a bag's deserialisation time)
+NOT_SUMMARIZED = ("/tf", "/tf_static")
+
+
+def load_bag(path: str | Path, topics: list[str] | None = None, exclude=()) -> BagData:
+    """The bag's topics (``topics``: only those; ``exclude``: not those) as arrays (module doc)."""
     path = Path(path)
     recovered = None if (path / "metadata.yaml").exists() else recover_bag(path)
     data = BagData(path, recovered=recovered)      # (recovered: a killed recorder's bag, rewritten)
@@ -125,7 +131,8 @@ def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
         for c in reader.connections:
             d = data.topics.setdefault(c.topic, {"type": c.msgtype, "count": 0})
             d["count"] += c.msgcount
-        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        conns = [c for c in reader.connections
+                 if (topics is None or c.topic in topics) and c.topic not in exclude]
         for c, t, msg in reader.messages(connections=conns):
             entry = raw.setdefault(c.topic, (c.msgtype, [], []))
             if entry[0] != c.msgtype:     # (ROS 2 matches one type a topic; here: keep the newest type)
@@ -147,7 +154,7 @@ def load_bag(path: str | Path, topics: list[str] | None = None) -> BagData:
         if items:
             data.arrays[topic] = _convert(msgtype, items)
     for topic in data.topics:
-        if topics is None or topic in topics:
+        if (topics is None or topic in topics) and topic not in exclude:
             data.arrays.setdefault(topic, {"t_log": np.zeros(0), "msgs": []})
     return data
 

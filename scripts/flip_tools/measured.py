@@ -1,5 +1,5 @@
 """The paper's outputs as the robot actually had them, recomputed from a bag: /joint_states and
-/odom (same stamps) through the model on /robot_description, with the controller's own output
+/odom (same stamps) through the model on /robot_description_mjcf, with the controller's own output
 definitions (tsc_controller.outputs: centroidal pitch momentum, leg length, COM, flywheel
 momentum).  For plots of planned vs. measured; the landing verdict does not use it (it reads /odom
 only)."""
@@ -10,14 +10,27 @@ import numpy as np
 from .bag import BagData
 
 
+def _last_text(data: BagData, topic: str) -> str:
+    msg = data.get(topic) or {}
+    text = msg.get("data")
+    return (text[-1] if isinstance(text, list) and text else text) or ""
+
+
+def bag_mjcf(data: BagData) -> str:
+    """The MJCF the controller was built from: /robot_description_mjcf, or /robot_description in
+    bags from before the URDF took that topic (an MJCF there starts with ``<mujoco``)."""
+    mjcf = _last_text(data, "/robot_description_mjcf")
+    if mjcf:
+        return mjcf
+    old = _last_text(data, "/robot_description")
+    return old if old.lstrip().startswith("<mujoco") else ""
+
+
 def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
     when the bag lacks the state or a model of this robot."""
-    desc, js, od = data.get("/robot_description"), data.get("/joint_states"), data.get("/odom")
-    if not desc or js is None or od is None or not len(js["t"]) or not len(od["t"]):
-        return None
-    mjcf = desc["data"][-1] if isinstance(desc.get("data"), list) else desc.get("data")
-    if not mjcf:
+    mjcf, js, od = bag_mjcf(data), data.get("/joint_states"), data.get("/odom")
+    if not mjcf or js is None or od is None or not len(js["t"]) or not len(od["t"]):
         return None
     from tsc_controller import outputs as O
     from tsc_controller.dynamics import Dynamics

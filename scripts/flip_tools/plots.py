@@ -1,7 +1,7 @@
 """PNG plots of a run from its bag (matplotlib Agg; no ROS import), after the paper's Fig. 6.
 
 fig6.png      pitch momentum (planned per domain vs. measured: recomputed from /joint_states + /odom
-              with the model on /robot_description, flywheel share too), leg length,
+              with the model on /robot_description_mjcf, flywheel share too), leg length,
               ground normal force, x_com, pelvis pitch (planned vs. /odom), flywheel torque and
               speed — each panel shows what the bag holds and says "not in the bag" otherwise.
 pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .bag import BagData, load_bag  # noqa: E402
+from .bag import NOT_SUMMARIZED, BagData, load_bag  # noqa: E402
 from .measured import measured_outputs  # noqa: E402
 from .summary import odom_time, pitch_unwrapped, tilt  # noqa: E402
 
@@ -28,7 +28,7 @@ DOMAIN_COLORS = {0: "#ffffff", 1: "#fff3d6", 2: "#dcecff", 3: "#e3f5e1"}
 
 
 def plot_bag(bag: str | Path, out_dir: str | Path, data: BagData | None = None) -> list[Path]:
-    data = data or load_bag(bag)
+    data = data or load_bag(bag, exclude=NOT_SUMMARIZED)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [_fig6(data, out / "fig6.png"), _pelvis(data, out / "pelvis.png"),

@@ -129,7 +129,10 @@ CONTRACT_TOPICS: dict[str, TopicSpec] = {t.name: t for t in [
     TopicSpec("/motor_command", "flip_msgs/msg/MotorCommand", False, False, 1),
     TopicSpec("/contact_events", "flip_msgs/msg/ContactEvent", True, True, 10),
     TopicSpec("/fslip/reference", "flip_msgs/msg/FlipReference", True, True, 5),
-    TopicSpec("/robot_description", "std_msgs/msg/String", True, True, 1),
+    TopicSpec("/robot_description", "std_msgs/msg/String", True, True, 1),        # URDF
+    TopicSpec("/robot_description_mjcf", "std_msgs/msg/String", True, True, 1),   # MJCF
+    TopicSpec("/tf", "tf2_msgs/msg/TFMessage", True, False, 100),
+    TopicSpec("/tf_static", "tf2_msgs/msg/TFMessage", True, True, 1),
 ]}
 
 

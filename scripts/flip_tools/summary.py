@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import BagData, load_bag
+from .bag import NOT_SUMMARIZED, BagData, load_bag
 
 LANDING_CRITERIA = {
     "rotation_tolerance_deg": 45.0,
@@ -147,7 +147,7 @@ def recorded_steps(data: BagData, dt: float = 0.0005) -> dict:
 
 def summarize_bag(bag: str | Path, kind: str | None = None, landing_ground_z: float = 0.0,
                   takeoff_ground_z: float | None = None) -> dict:
-    return summarize(load_bag(bag), kind=kind, landing_ground_z=landing_ground_z,
+    return summarize(load_bag(bag, exclude=NOT_SUMMARIZED), kind=kind, landing_ground_z=landing_ground_z,
                      takeoff_ground_z=takeoff_ground_z)
 
 

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""Stand-in for sim_node (no physics): publishes /clock, /odom, /joint_states, /contact_events
-and /robot_description with the contract's QoS, plays a scripted flip when a FlipReference
-arrives (rotation = its rotation_to_go, flight = its flight_time) and exits by itself once sim
-time reaches the `duration` parameter (re-read every step, so it can be set at run time).
+"""Stand-in for sim_node (no physics): publishes /clock, /odom, /joint_states, /contact_events,
+/robot_description (a one-link URDF) and /robot_description_mjcf with the contract's QoS, plays a
+scripted flip when a FlipReference arrives (rotation = its rotation_to_go, flight = its
+flight_time) and exits by itself once sim time reaches the `duration` parameter (re-read every
+step, so it can be set at run time).
 Like sim_node it holds the first step until /joint_states and /odom have `min_subscribers`
 subscribers (+1 with controller:=tsc) and /clock has `min_subscribers`.
 `outcome:=fall` ends the flip tilted 90 deg, low. Sim time advances `rate` x wall time."""
@@ -50,7 +51,9 @@ class FakeSim(Node):
         self.p_js = self.create_publisher(JointState, "/joint_states", be())
         self.p_ev = self.create_publisher(ContactEvent, "/contact_events", tl(10))
         self.p_desc = self.create_publisher(String, "/robot_description", tl(1))
-        self.p_desc.publish(String(data="<mujoco model='fake_cassie'/>"))
+        self.p_desc.publish(String(data="<robot name='fake_cassie'><link name='pelvis'/></robot>"))
+        self.p_mjcf = self.create_publisher(String, "/robot_description_mjcf", tl(1))
+        self.p_mjcf.publish(String(data="<mujoco model='fake_cassie'/>"))
         self.create_subscription(FlipReference, "/fslip/reference", self.on_ref, tl(5))
         self.create_subscription(MotorCommand, "/motor_command", lambda m: None, qos_profile_sensor_data)
         self.t = 0.0

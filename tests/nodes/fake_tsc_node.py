@@ -25,7 +25,7 @@ class FakeTsc(Node):
         self.create_subscription(JointState, "/joint_states", self.cb, qos_profile_sensor_data)
         from nav_msgs.msg import Odometry
         self.create_subscription(Odometry, "/odom", lambda m: None, qos_profile_sensor_data)
-        self.create_subscription(String, "/robot_description", lambda m: None,
+        self.create_subscription(String, "/robot_description_mjcf", lambda m: None,
                                  QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.step = 0

@@ -93,6 +93,7 @@ setup(
     license="BSD-3-Clause",
     entry_points={"console_scripts": [
         "sim_node = cassie_flip_sim.sim_node:main",
+        "state_publisher = cassie_flip_sim.state_publisher:main",
         "echo_controller = cassie_flip_sim.echo_controller:main",
     ]},
 )

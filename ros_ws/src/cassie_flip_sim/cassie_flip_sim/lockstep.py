@@ -70,6 +70,19 @@ def pin_to_lockstep_cpu():
     return int(cpu)
 
 
+def avoid_lockstep_cpu():
+    """Keep every thread of this process off the CPU in ``$FLIP_LOCKSTEP_CPU`` (call before
+    ``rclpy.init``), for a reader of the lockstep's streams that must not preempt it. Returns the
+    CPUs left, or None (unset, or no other CPU: then nothing changes)."""
+    cpu = os.environ.get(LOCKSTEP_CPU_ENV, '')
+    others = os.sched_getaffinity(0) - {int(cpu)} if cpu.isdigit() else set()
+    if not others:
+        return None
+    for tid in os.listdir('/proc/self/task'):
+        os.sched_setaffinity(int(tid), others)
+    return sorted(others)
+
+
 def scheduling_note():
     """'cpus [..], SCHED_...' of the calling thread, read back from the kernel (for a node's log)."""
     names = {os.SCHED_OTHER: 'SCHED_OTHER', os.SCHED_BATCH: 'SCHED_BATCH', os.SCHED_IDLE: 'SCHED_IDLE',

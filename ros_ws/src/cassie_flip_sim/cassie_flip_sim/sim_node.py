@@ -54,6 +54,7 @@ from .node_stop import run_until_stopped
 from .contacts import Event
 from .model import Scenario, export_mjcf
 from .simulator import Simulator
+from .urdf import export_urdf
 
 #: longest wall time the simulator holds at a contact event for the planner's reference
 PLANNER_HOLD_TIMEOUT_S = 30.0
@@ -148,7 +149,10 @@ class SimNode:
         self.pub_js = n.create_publisher(JointState, '/joint_states', STREAM_QOS)
         self.pub_odom = n.create_publisher(Odometry, '/odom', STREAM_QOS)
         self.pub_events = n.create_publisher(ContactEvent, '/contact_events', LATCHED_QOS)
-        self.pub_desc = n.create_publisher(String, '/robot_description', LATCHED_QOS)
+        # the MJCF (the controller's model, with this robot's flywheel and torque limit) and the URDF
+        # of the same model (robot_state_publisher's topic: tf, viewers)
+        self.pub_mjcf = n.create_publisher(String, '/robot_description_mjcf', LATCHED_QOS)
+        self.pub_urdf = n.create_publisher(String, '/robot_description', LATCHED_QOS)
         self.subs = SubscriptionSet(n, [(MotorCommand, '/motor_command', STREAM_QOS),
                                         (FlipReference, '/fslip/reference', LATCHED_QOS)],
                                     raw=('/motor_command',))
@@ -160,7 +164,8 @@ class SimNode:
         self.executor.add_node(self.srv_node)
 
         self._prealloc_messages()
-        self.pub_desc.publish(String(data=export_mjcf(self.sim.flywheel)))   # with its torque limit
+        self.pub_mjcf.publish(String(data=export_mjcf(self.sim.flywheel)))   # with its torque limit
+        self.pub_urdf.publish(String(data=export_urdf(self.sim.flywheel)))
         self.command = np.zeros(11)
         self.plan_in_force = None      # (plan_id, domain) of the newest reference seen
         self.hold_times = []

@@ -36,9 +36,9 @@ from .dynamics import MOTOR_NAMES
 
 DT_NS = 500_000
 #: topics that wake the node: all but /odom, which comes before /joint_states
-WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description')
+WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description_mjcf')
 #: the topics besides the state's (taken with rclpy also when rcl's C API waits: _rcl_io.StateWait)
-OTHER_TOPICS = ('/contact_events', '/fslip/reference', '/robot_description')
+OTHER_TOPICS = ('/contact_events', '/fslip/reference', '/robot_description_mjcf')
 
 
 class TscNode:
@@ -49,12 +49,12 @@ class TscNode:
             (Odometry, '/odom', STREAM_QOS),
             (ContactEvent, '/contact_events', LATCHED_QOS),
             (FlipReference, '/fslip/reference', LATCHED_QOS),
-            (String, '/robot_description', LATCHED_QOS),
+            (String, '/robot_description_mjcf', LATCHED_QOS),
         ], raw=('/joint_states', '/odom'))
         # /motor_command's publisher comes with the controller (_on_message): the simulator waits for a
         # publisher of it before its first step, so a publisher means a controller that answers (made
         # here, the simulator could step before the controller existed: in one graph run it was built
-        # from /robot_description 0.19 s after the first state was sent)
+        # from /robot_description_mjcf 0.19 s after the first state was sent)
         self.pub = self.pub_ptr = None
         self.controller = None
         # leg motors' no-load speeds x this: the same robot as the simulator's (sim_node parameter)
@@ -151,13 +151,13 @@ class TscNode:
 
     def _on_message(self, topic, msg):
         """A message of one of OTHER_TOPICS."""
-        if topic == '/robot_description':
+        if topic == '/robot_description_mjcf':
             self.controller = Controller(msg.data, motor_speed_scale=self.motor_speed_scale,
                                          flywheel_torque=self.flywheel_torque, **self.overrides)
             if self.pub is None:
                 self.pub = self.node.create_publisher(MotorCommand, '/motor_command', STREAM_QOS)
                 self.pub_ptr = self.pub.handle.pointer
-            self.node.get_logger().info('controller built from /robot_description'
+            self.node.get_logger().info('controller built from /robot_description_mjcf'
                                         + (f', settings {self.overrides}' if self.overrides else '')
                                         + f'; {scheduling_note()}')
             for m in self.pending:

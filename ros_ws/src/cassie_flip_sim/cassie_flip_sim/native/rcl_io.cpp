@@ -70,6 +70,38 @@ void publish(std::uintptr_t publisher, py::buffer buf, std::int64_t stamp_ns) {
               static_cast<std::size_t>(info.size * info.itemsize), stamp_ns);
 }
 
+// Take every message queued on a subscription (rclpy's pointer) and return those whose header stamp
+// (CDR bytes 4..12) is a multiple of period_ns, as (stamp_ns, bytes), in the order taken: a reader of
+// a per-step stream that keeps one message in ten without a Python call for each (state_publisher).
+py::list take_on_grid(std::uintptr_t subscription, std::int64_t period_ns) {
+  if (period_ns <= 0) throw std::invalid_argument("period_ns must be > 0");
+  rcl_subscription_t *sub = from_address<rcl_subscription_t>(subscription);
+  rcutils_allocator_t alloc = rcutils_get_default_allocator();
+  rcl_serialized_message_t taken = rmw_get_zero_initialized_serialized_message();
+  if (rmw_serialized_message_init(&taken, 4096, &alloc) != RMW_RET_OK) {
+    rcutils_reset_error();
+    throw std::runtime_error("rmw_serialized_message_init failed");
+  }
+  std::unique_ptr<rcl_serialized_message_t, void (*)(rcl_serialized_message_t *)> guard(
+      &taken, [](rcl_serialized_message_t *m) { rmw_serialized_message_fini(m); });
+  py::list out;
+  for (;;) {
+    rmw_message_info_t info = rmw_get_zero_initialized_message_info();
+    rcl_ret_t rc = rcl_take_serialized_message(sub, &taken, &info, nullptr);
+    if (rc == RCL_RET_SUBSCRIPTION_TAKE_FAILED) break;
+    if (rc != RCL_RET_OK) rcl_fail("rcl_take_serialized_message");
+    if (taken.buffer_length < 12) continue;
+    std::int32_t sec;
+    std::uint32_t nsec;
+    std::memcpy(&sec, taken.buffer + 4, 4);
+    std::memcpy(&nsec, taken.buffer + 8, 4);
+    const std::int64_t ns = std::int64_t(sec) * 1000000000 + nsec;
+    if (ns % period_ns == 0)
+      out.append(py::make_tuple(ns, py::bytes(reinterpret_cast<const char *>(taken.buffer), taken.buffer_length)));
+  }
+  return out;
+}
+
 // Little-endian CDR reader (alignment relative to the end of the 4-byte encapsulation header).
 struct Cdr {
   const std::uint8_t *b;
@@ -518,6 +550,9 @@ PYBIND11_MODULE(_rcl_io, mod) {
   mod.def("publish", &publish, py::arg("publisher"), py::arg("buf"), py::arg("stamp_ns") = -1,
           "Publish the serialized message in buf (rclpy publisher's pointer); stamp_ns >= 0 writes its "
           "header stamp first.");
+  mod.def("take_on_grid", &take_on_grid, py::arg("subscription"), py::arg("period_ns"),
+          "Take every queued message of a subscription (rclpy's pointer); return [(stamp_ns, bytes)] of those "
+          "whose header stamp is a multiple of period_ns.");
   py::class_<CommandWait> cw(mod, "CommandWait");
   cw.def(py::init<std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t>(), py::arg("context"),
          py::arg("command_subscription"), py::arg("reference_subscription"), py::arg("sigint_guard"))
