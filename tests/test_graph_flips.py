@@ -43,9 +43,10 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert s["outcome"] == "landed" and s["response"]["accepted"] is True
     lo, td = events(s, "LIFT_OFF"), events(s, "TOUCH_DOWN")
     assert td[0] - lo[0] > 0.1 and td[0] > lo[0]                          # the flight, a real one
-    # then on the ground, but for at most one rebound of a few ms: from some start states the tracked
-    # landing plan unloads the feet ~80 ms after the touch-down for ~10 ms (docs/measurements.md)
-    assert len(lo) == len(td) <= 2 and all(0.0 < b - a < 0.02 for a, b in zip(lo[1:], td[1:])), (lo, td)
+    # then on the ground, but for at most one rebound of a few ms: from most start states the tracked
+    # landing plan unloads the feet ~80 ms after the touch-down, for 20-22 ms since the QP keeps
+    # 25 N per contact point (10 ms with 1 N; docs/measurements.md, issue 22)
+    assert len(lo) == len(td) <= 2 and all(0.0 < b - a < 0.025 for a, b in zip(lo[1:], td[1:])), (lo, td)
     assert s["apex_rise_m"] > 0.08
     assert abs(s["net_rotation_deg"]) < 5 and s["final_tilt_deg"] < 3
     assert s["at_rest"] is True and not events(s, "BODY_CONTACT")

@@ -253,7 +253,13 @@ class ControllerConfig:
     compiled_targets: bool = True
     reg: float = 1e-4
     mu: float = 0.6
-    f_min: float = 1.0                # N, at toe and heel (a heel-strike leaves the toe unloaded)
+    f_min: float = 1.0                # N, least normal force at toe and heel on the ground (unilateral)
+    # domain -> f_min there (overrides).  JUMPING and LANDING 25 N: near 0 the QP planned the feet all
+    # but unloaded whenever its tasks asked the body to decelerate (after the landing's leg catch, in
+    # the crouch) and the compliant legs took them off the ground: a rebound 0.3 s after a touch-down
+    # that tipped the robot, a crouch "lift-off" that aborted the flip (docs/measurements.md, "least
+    # normal force").  STANDING keeps 1: its start transient sank 2 mm deeper with 25.
+    f_min_domains: dict = field(default_factory=lambda: {1: 25.0, 3: 25.0})
     cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
     # domain -> cop_margin there (overrides).  JUMPING 0.2: without a margin the frontflip's heels rose
     # 8 cm in the push-off (the flat-foot QP kept them at f_min, the real feet rolled onto the toes)
@@ -397,7 +403,7 @@ class ControllerConfig:
 #: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
 #: own parameters (motor_speed_scale, flywheel_torque), the same in simulator, planner and controller
 ROBOT_FIELDS = ("motor_speed_scale", "flywheel_torque")
-_DOMAIN_KEYED = ("cop_margin_domains", "torque_smoothing")
+_DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing")
 
 
 def config_overrides(text: str) -> dict:
@@ -1039,7 +1045,8 @@ class Controller:
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
             res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,
-                                 self.cfg.cop_margin_domains.get(int(self.domain)), details)
+                                 self.cfg.cop_margin_domains.get(int(self.domain)), details,
+                                 self.cfg.f_min_domains.get(int(self.domain)))
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

@@ -305,11 +305,13 @@ class TSC:
             self._grf_rows(n_feet, cop_margin)
         self._tasks = {}
 
-    def _grf_rows(self, n_feet, cop_margin):
-        """(C, c, lower) of :func:`grf_constraints` for n_feet and a CoP margin, built once."""
-        key = (n_feet, cop_margin)
+    def _grf_rows(self, n_feet, cop_margin, f_min=None):
+        """(C, c, lower) of :func:`grf_constraints` for n_feet, a CoP margin and a least normal force
+        (None: the constructor's), built once."""
+        f_min = self.f_min if f_min is None else f_min
+        key = (n_feet, cop_margin, f_min)
         if key not in self._grf:
-            C, c = grf_constraints(n_feet, self.mu, self.f_min, cop_margin)
+            C, c = grf_constraints(n_feet, self.mu, f_min, cop_margin)
             self._grf[key] = (C, c, np.full(len(c), -1e20))
         return self._grf[key]
 
@@ -358,10 +360,11 @@ class TSC:
         return H, g, C, lo, up, errs, t_c
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
-              w_du: float = 0.0, cop_margin: float | None = None, details: bool = True) -> QPResult:
+              w_du: float = 0.0, cop_margin: float | None = None, details: bool = True,
+              f_min: float | None = None) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
-        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` overrides the constructor's.
+        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` and ``f_min`` override the constructor's.
         ``details=False`` (compiled task rows only): the same u, without the output errors (``y``)
         and the elimination's arrays (no ``forces``, ``qdd``) in the result."""
         dyn = self.dyn
@@ -375,7 +378,7 @@ class TSC:
         task = self._task(outputs)
         lean = not details and task.native is not None
         cd = ConstrainedDynamics(dyn, ground, feet, arrays=not lean)
-        grf = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin) if ground else None
+        grf = self._grf_rows(n_feet, self.cop_margin if cop_margin is None else cop_margin, f_min) if ground else None
         if task.native is not None:
             H, g, C, lo, up, errs, t_c = self._native_terms(task, desired, grf, w_du, u_prev, not lean)
         else:
