@@ -10,9 +10,9 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 PKGS := ros_ws/src/cassie_flip_sim ros_ws/src/fslip_planner ros_ws/src/tsc_controller
 MSGS := ros_ws/src/flip_msgs
-MSG_SRCS := $(wildcard $(MSGS)/msg/*.msg $(MSGS)/srv/*.srv) $(MSGS)/CMakeLists.txt $(MSGS)/package.xml $(MSGS)/pyproject.toml
+MSG_SRCS := $(wildcard $(MSGS)/msg/*.msg $(MSGS)/srv/*.srv) $(MSGS)/CMakeLists.txt $(MSGS)/package.xml $(MSGS)/pyproject.toml ros_ws/cmake/ros_wheels_python.cmake
 TF2_MSGS := ros_ws/src/tf2_msgs
-TF2_MSG_SRCS := $(wildcard $(TF2_MSGS)/msg/*.msg) $(TF2_MSGS)/CMakeLists.txt $(TF2_MSGS)/package.xml $(TF2_MSGS)/pyproject.toml
+TF2_MSG_SRCS := $(wildcard $(TF2_MSGS)/msg/*.msg) $(TF2_MSGS)/CMakeLists.txt $(TF2_MSGS)/package.xml $(TF2_MSGS)/pyproject.toml ros_ws/cmake/ros_wheels_python.cmake
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 

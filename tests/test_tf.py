@@ -161,7 +161,7 @@ def test_tf_tree_reaches_the_feet_and_flywheel_on_the_sim_clock(stand_bag):
 
 
 def test_bag_urdf_with_joint_states_matches_tf(stand_bag):
-    yourdfpy = pytest.importorskip("yourdfpy")
+    import yourdfpy
     robot = yourdfpy.URDF.load(io.StringIO(stand_bag["/robot_description"]["data"][-1]), load_meshes=False,
                                build_collision_scene_graph=False)
     js, od = stand_bag["/joint_states"], stand_bag["/odom"]

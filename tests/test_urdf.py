@@ -7,12 +7,12 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 import pytest
+import yourdfpy
 from scipy.spatial.transform import Rotation
 
 from cassie_flip_sim import model as M
 from cassie_flip_sim.urdf import ball_angles, export_urdf, urdf_from_model
 
-yourdfpy = pytest.importorskip("yourdfpy")
 
 POS_TOL, ROT_TOL = 1e-3, 1e-6
 
