@@ -1,0 +1,168 @@
+"""The live view's ROS side: rclpy raw subscriptions -> flip_tools.live.LiveServer (Foxglove WebSocket).
+
+Started by `flip run|stand|sim --live` as its own process (node ``flip_live``), like the recorder:
+
+    python -m flip_tools.live_node --port 8765 [--domain N]     (from scripts/, on a running graph)
+
+- Channels: the contract topics of docs/architecture.md at once, and every other topic that appears
+  in the graph (polled, as the recorder's ``--all`` does), typed by the rosbags typestore.
+- Reading: latched (transient-local) topics always, reliable and transient local; the others only
+  while a Foxglove client is subscribed to their channel, best effort, so that nobody watching
+  costs the lockstep's publishers nothing.
+- Off the lockstep's CPU (cassie_flip_sim.lockstep.avoid_lockstep_cpu), niced by flip.
+- No executor: every POLL_S the loop takes what each subscription has queued, serialized
+  (raw=True), and forwards the bytes with their receive time (the recorder's log time).
+- Prints ``live: serving ws://127.0.0.1:PORT`` once it listens (flip reads the port from its log);
+  a port it cannot bind ends it with exit 3 and the reason. SIGINT/SIGTERM stop it.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+
+from .live import DEFAULT_PORT, LIVE_HOST, SERVING_PREFIX, LiveServer, LiveTopics, port_arg
+from .rosenv import CONTRACT_TOPICS, message_class
+
+NODE_NAME = "flip_live"
+POLL_S = 0.01          # take what is queued, forward it
+DISCOVER_S = 0.5       # graph poll: new topics, and subscriptions to follow the clients'
+LATCHED_DEPTH = 10     # kept of a latched topic outside the contract table
+READ_DEPTH = 1000      # reader queue of a streamed topic (best effort: older messages dropped)
+
+
+def _ignore(_msg):
+    return None
+
+
+class LiveBridge:
+    """One rclpy node (never spun) reading the graph's topics into a LiveServer."""
+
+    def __init__(self, node, server: LiveServer):
+        self.node = node
+        self.server = server
+        self.topics = LiveTopics()
+        self.subs: dict[str, object] = {}
+        self.unreadable: set[str] = set()
+        self.own_topics = {node.get_fully_qualified_name() + "/status"}
+        for spec in CONTRACT_TOPICS.values():
+            self._offer(spec.name, spec.msgtype, spec.transient_local, spec.depth, spec.reliable)
+        self.update()
+
+    def _offer(self, topic, msgtype, transient_local, depth, reliable) -> None:
+        if topic in self.unreadable or topic in self.own_topics:
+            return
+        try:
+            message_class(msgtype)
+            problem = None if msgtype in self.server.typestore.fielddefs else "not in the rosbags typestore"
+        except (ImportError, AttributeError, ValueError) as e:
+            problem = repr(e)
+        if problem:
+            self.node.get_logger().warning(f"no channel for {topic} [{msgtype}]: {problem}")
+            self.unreadable.add(topic)
+            return
+        info = self.topics.offer(topic, msgtype, transient_local, depth, reliable)
+        if info is not None:
+            self.server.add_channel(info)
+
+    def discover(self) -> None:
+        """Channels for the topics that appeared (QoS of their publishers, as the recorder's)."""
+        from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+        for name, types in self.node.get_topic_names_and_types():
+            if name in self.topics.topics or not types:
+                continue
+            infos = self.node.get_publishers_info_by_topic(name)
+            if not infos:
+                continue
+            tl = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+            rel = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+            self._offer(name, types[0], tl, LATCHED_DEPTH, rel)
+
+    def update(self) -> None:
+        """Subscriptions to match what is wanted: latched topics, and the streamed topics some
+        client is subscribed to."""
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        want = self.topics.wanted(self.server.subscribed())
+        for topic in [t for t in self.subs if t not in want]:
+            self.node.destroy_subscription(self.subs.pop(topic))
+        for topic in want - set(self.subs):
+            info = self.topics.topics[topic]
+            if info.latched:
+                qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=info.latched,
+                                 reliability=ReliabilityPolicy.RELIABLE if info.reliable else ReliabilityPolicy.BEST_EFFORT,
+                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            else:
+                qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=READ_DEPTH,
+                                 reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+            self.subs[topic] = self.node.create_subscription(message_class(info.msgtype), topic, _ignore, qos,
+                                                             raw=True)
+
+    def take_all(self) -> int:
+        """Forward every queued message, stamped with its receive time; how many."""
+        n = 0
+        forward = self.server.forward
+        for topic, sub in self.subs.items():
+            while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
+                forward(topic, r[0], r[1].get("received_timestamp") or time.time_ns())
+                n += 1
+        return n
+
+
+def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, duration: float | None = None) -> int:
+    """Listen on host:port, then forward the graph's topics until SIGINT/SIGTERM (or ``duration``)."""
+    from cassie_flip_sim.lockstep import avoid_lockstep_cpu
+    from .typestore import flip_typestore
+    # off the lockstep's CPU, like the state publisher (before the server's and DDS's threads start)
+    avoid_lockstep_cpu()
+    stop = {"flag": False}
+
+    def _on_signal(signum, frame):
+        stop["flag"] = True
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    try:
+        server = LiveServer(port, host, typestore=flip_typestore())
+    except OSError as e:
+        print(f"live: {e}", flush=True)
+        return 3
+    print(f"{SERVING_PREFIX}{host}:{server.port}", flush=True)
+    import rclpy
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    node = rclpy.create_node(NODE_NAME, start_parameter_services=False)
+    t0 = time.monotonic()
+    try:
+        bridge = LiveBridge(node, server)
+        next_discover = t0
+        while not stop["flag"] and (duration is None or time.monotonic() - t0 < duration):
+            server.replay_latched()
+            bridge.take_all()
+            now = time.monotonic()
+            if now >= next_discover:
+                bridge.discover()
+                next_discover = now + DISCOVER_S
+            bridge.update()
+            time.sleep(POLL_S)
+    finally:
+        server.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    print(json.dumps({"live_forwarded": dict(server.forwarded), "wall_s": round(time.monotonic() - t0, 3),
+                      "cpu_s": round(time.process_time(), 3)}), flush=True)
+    return 0
+
+
+def main(argv=None) -> int:
+    from .rosenv import set_process_ros_env
+    p = argparse.ArgumentParser(prog="python -m flip_tools.live_node", description=__doc__.split("\n\n")[0])
+    p.add_argument("--port", type=port_arg, default=DEFAULT_PORT, help=f"0 = a free one (default {DEFAULT_PORT})")
+    p.add_argument("--domain", type=int, help="ROS_DOMAIN_ID (default: the environment's)")
+    p.add_argument("--duration", type=float, help="wall seconds (default: until SIGINT/SIGTERM)")
+    a = p.parse_args(argv)
+    set_process_ros_env()
+    return serve(a.port, a.domain, duration=a.duration)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
