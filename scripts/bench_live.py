@@ -2,7 +2,9 @@
 """What --live costs the lockstep: the same `flip` command run back to back without --live, with
 --live and nobody watching, and with --live and a client subscribed to every channel (as a Foxglove
 layout that shows everything would be), interleaved, REPEAT rounds; prints each run's real-time
-factor (sim time / wall time of the bag, summary.json) and the messages the client received.
+factor (sim time / wall time of the bag, summary.json), the simulator's and the controller's CPU per
+lockstep step (their logs: an extra reader of the 2 kHz topics costs the publisher there, whatever
+else the machine runs), the load average before the run, and what the client received.
 
     .venv/bin/python scripts/bench_live.py --repeat 3 -- stand --duration 10
     .venv/bin/python scripts/bench_live.py --repeat 2 -- run backflip --robot cassie-legs3-fw260 --apex 1.3 --settle 8
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import subprocess
 import sys
@@ -59,6 +62,7 @@ def run_once(flip_args: list[str], mode: str, out: Path) -> dict:
     if mode != "off":
         cmd += ["--live", "--live-port", "0"]
     counts: dict = {}
+    load = os.getloadavg()[0]
     t0, cpu0 = time.monotonic(), time.process_time()
     if mode == "live+client":
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -70,7 +74,18 @@ def run_once(flip_args: list[str], mode: str, out: Path) -> dict:
     return {"mode": mode, "exit": rc, "outcome": s.get("outcome"), "rtf": s.get("real_time_factor"),
             "sim_s": s.get("sim_duration_s"), "tick_median_us": (s.get("tsc_tick_us") or {}).get("median"),
             "wall_s": round(time.monotonic() - t0, 1), "client_messages": sum(counts.values()),
-            "client_cpu_s": round(time.process_time() - cpu0, 2), "live_cpu_s": live_cpu(out)}
+            "client_cpu_s": round(time.process_time() - cpu0, 2), "live_cpu_s": live_cpu(out),
+            "load": round(load, 2), "sim_cpu_us": cpu_per_step(out / "logs" / "sim.log"),
+            "tsc_cpu_us": cpu_per_step(out / "logs" / "tsc.log")}
+
+
+def cpu_per_step(log: Path) -> str | None:
+    """'main+other' µs of CPU per step, from the node's 'cpu per step (mean us)' log line."""
+    try:
+        m = re.search(r"cpu per step \(mean us\): main thread (\d+), other threads (\d+)", log.read_text())
+    except OSError:
+        return None
+    return f"{m.group(1)}+{m.group(2)}" if m else None
 
 
 def live_cpu(out: Path) -> float | None:
@@ -91,15 +106,17 @@ def main() -> int:
     p.add_argument("flip_args", nargs="+", help="the flip command after --, without --out")
     a = p.parse_args()
     rows = []
-    print(f"{'round':>5} {'mode':>12} {'exit':>4} {'outcome':>10} {'sim s':>6} {'RTF':>6} {'tick us':>7} "
-          f"{'wall s':>6} {'client msgs':>11} {'client cpu s':>12} {'live cpu s':>10}", flush=True)
+    print(f"{'round':>5} {'mode':>12} {'load':>5} {'exit':>4} {'outcome':>10} {'sim s':>6} {'RTF':>6} {'tick us':>7} "
+          f"{'sim cpu/step':>12} {'tsc cpu/step':>12} {'wall s':>6} {'client msgs':>11} {'client cpu s':>12} "
+          f"{'live cpu s':>10}", flush=True)
     for i in range(a.repeat):
         for mode in MODES:
             r = run_once(a.flip_args, mode, Path(a.out) / f"{mode.replace('+', '-')}-{i}")
             rows.append(r)
-            print(f"{i:>5} {mode:>12} {r['exit']:>4} {str(r['outcome']):>10} {r['sim_s']:>6} {r['rtf']:>6} "
-                  f"{r['tick_median_us']:>7} {r['wall_s']:>6} {r['client_messages']:>11} {r['client_cpu_s']:>12} "
-                  f"{str(r['live_cpu_s']):>10}", flush=True)
+            print(f"{i:>5} {mode:>12} {r['load']:>5} {r['exit']:>4} {str(r['outcome']):>10} {r['sim_s']:>6} "
+                  f"{r['rtf']:>6} {r['tick_median_us']:>7} {str(r['sim_cpu_us']):>12} {str(r['tsc_cpu_us']):>12} "
+                  f"{r['wall_s']:>6} {r['client_messages']:>11} {r['client_cpu_s']:>12} {str(r['live_cpu_s']):>10}",
+                  flush=True)
     for mode in MODES:
         rtfs = [r["rtf"] for r in rows if r["mode"] == mode and r["rtf"]]
         if rtfs:

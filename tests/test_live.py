@@ -70,8 +70,8 @@ def test_a_free_port_and_port_0_are_usable():
 
 
 def test_the_node_command_and_its_serving_line():
-    assert live_node_cmd(0)[-4:] == ["-m", "flip_tools.live_node", "--port", "0"]
-    assert live_node_cmd(9, "/bin/stand-in -x") == ["/bin/stand-in", "-x", "--port", "9"]
+    assert live_node_cmd(0)[-5:] == ["-m", "flip_tools.live_node", "--port", "0", "--hold-streams"]
+    assert live_node_cmd(9, "/bin/stand-in -x") == ["/bin/stand-in", "-x", "--port", "9", "--hold-streams"]
     assert parse_serving_line("starting\nlive: serving ws://127.0.0.1:41234\n{...}") == 41234
     assert parse_serving_line("live: cannot listen on 127.0.0.1:8765 (...)") is None
 
@@ -85,6 +85,8 @@ def test_latched_topics_are_always_read_the_others_only_while_watched():
     assert t.offer("/parameter_events", "rcl_interfaces/msg/ParameterEvent", False, 10) is None
     assert t.wanted(set()) == {"/robot_description"}
     assert t.wanted({"/odom", "/not_offered"}) == {"/robot_description", "/odom"}
+    # before the graph runs (flip's --hold-streams), a client's wish reads no stream yet
+    assert t.wanted({"/odom"}, streams=False) == {"/robot_description"}
 
 
 # --- the server, as a WebSocket client sees it ------------------------------------------------------
@@ -173,3 +175,52 @@ def test_binary_frames_other_than_messages_are_not_messages():
     assert parse_binary(bytes([0x02]) + (5).to_bytes(8, "little")) is None       # server time
     m = parse_binary(bytes([0x01]) + (7).to_bytes(4, "little") + (9).to_bytes(8, "little") + b"abc")
     assert (m.subscription, m.log_time, m.payload) == (7, 9, b"abc")
+
+
+# --- the Foxglove layout (docs/foxglove_layout.json) ---------------------------------------------------
+LAYOUT = FLIP.parents[1] / "docs" / "foxglove_layout.json"
+NUMERIC = {"float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"}
+
+
+def resolve(path):
+    """The ROS type at the end of a Foxglove message path "/topic.field.sub[i]" of a recorded topic:
+    ("base", 'float64') or ("msg", 'pkg/msg/Name'); AssertionError when a field does not exist."""
+    from flip_tools.rosenv import CONTRACT_TOPICS
+    topic, _, rest = path.partition(".")
+    assert topic in CONTRACT_TOPICS, f"{path}: {topic} is not a recorded topic"
+    store, kind, typ = flip_typestore(), "msg", CONTRACT_TOPICS[topic].msgtype
+    for part in rest.split(".") if rest else []:
+        name, _, index = part.partition("[")
+        assert kind == "msg", f"{path}: {name} of a {typ}"
+        fields = dict(store.fielddefs[typ][1])
+        assert name in fields, f"{path}: {typ} has no field {name} (it has {sorted(fields)})"
+        node, desc = fields[name]
+        if index:
+            assert node.name in ("SEQUENCE", "ARRAY"), f"{path}: {name} is not an array"
+            node, desc = desc[0]
+        kind, typ = ("base", desc[0]) if node.name == "BASE" else ("msg", desc)
+    return kind, typ
+
+
+def test_the_layout_shows_fields_the_recorded_topics_have():
+    import json
+    from cassie_flip_sim.robot_params import MOTOR_NAMES
+    from cassie_flip_sim.simulator import Simulator
+    doc = json.loads(LAYOUT.read_text())
+    config = doc["configById"]
+
+    def panels(node):
+        return [node] if isinstance(node, str) else panels(node["first"]) + panels(node["second"])
+    assert sorted(panels(doc["layout"])) == sorted(config)                  # every panel placed, once
+    plotted = [s["value"] for k, c in config.items() if k.split("!")[0] in ("Plot", "StateTransitions")
+               for s in c["paths"]]
+    assert plotted and all(resolve(p)[0] == "base" and resolve(p)[1] in NUMERIC for p in plotted), plotted
+    # the indexed entries are the flywheel's: /joint_states' order is the simulator's, /motor_command's
+    # the motor order of docs/architecture.md
+    joints = Simulator().joint_names
+    assert "/joint_states.velocity[26]" in plotted and joints[26] == "flywheel"
+    assert "/motor_command.effort[10]" in plotted and MOTOR_NAMES[10] == "flywheel"
+    assert resolve(config["RawMessages!plan"]["topicPath"]) == ("msg", "flip_msgs/msg/FlipReference")
+    three_d = config["3D!robot"]
+    assert list(three_d["topics"]) == ["/robot_description"] and resolve("/robot_description")
+    assert (three_d["followTf"], three_d["layers"]["grid"]["frameId"]) == ("pelvis", "world")   # /odom's frames

@@ -88,7 +88,8 @@ def test_a_client_gets_the_graph_topics_as_cdr_and_latched_ones_late(tmp_path):
     assert run["live"]["url"] == url
     live = json.loads((out / "summary.json").read_text())["processes"]["live"]
     assert live["returncode"] == 0 and live["stopped_by"] == "SIGINT", live
-    assert "/odom" in (out / "logs" / "live.log").read_text()               # its count of forwarded messages
+    log = (out / "logs" / "live.log").read_text()
+    assert "live: the graph runs" in log and "/odom" in log     # released by flip; its count of forwarded messages
 
 
 @pytest.mark.parametrize("stand_in, message", [

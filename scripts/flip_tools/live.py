@@ -19,7 +19,9 @@
 - `LiveTopics` decides which topics get a channel and which of them must be read from the graph:
   latched ones always (to keep them for late clients), the others only while a client is
   subscribed to their channel, so that a live view nobody watches adds no reader to the
-  lockstep's 2 kHz topics.
+  lockstep's 2 kHz topics. Under flip, not before the graph runs either (``hold_streams``, released
+  by SIGUSR1 once the recorder has matched): sim_node starts stepping when enough readers of its
+  streams have matched, and a Foxglove client's reader must not stand in for the recorder's.
 """
 from __future__ import annotations
 
@@ -95,11 +97,23 @@ def parse_serving_line(text: str) -> int | None:
 
 # --- the live process under flip's launcher -------------------------------------------------------
 def live_node_cmd(port: int, override: str | None = None) -> list[str]:
-    """The live process: ``python -m flip_tools.live_node --port PORT``, or a stand-in command
-    (``override``, split on spaces) given the same --port."""
+    """The live process: ``python -m flip_tools.live_node --port PORT --hold-streams``, or a
+    stand-in command (``override``, split on spaces) given the same arguments."""
     import sys
     base = override.split() if override else [sys.executable, "-m", "flip_tools.live_node"]
-    return base + ["--port", str(port)]
+    return base + ["--port", str(port), "--hold-streams"]
+
+
+def release_streams(launcher) -> bool:
+    """Tell the live process the graph runs (SIGUSR1): it may read the streamed topics now. False
+    when there is no live process running."""
+    import os
+    import signal
+    proc = launcher.procs.get("live")
+    if proc is None or proc.poll() is not None:
+        return False
+    os.kill(proc.pid, signal.SIGUSR1)
+    return True
 
 
 def start_live(launcher, port: int, override: str | None = None, nice: int = 10,
@@ -155,9 +169,10 @@ class LiveTopics:
         self.topics[topic] = info
         return info
 
-    def wanted(self, subscribed: set[str]) -> set[str]:
-        """Topics to read now: every latched one, and the others some client is subscribed to."""
-        return {t for t, i in self.topics.items() if i.latched or t in subscribed}
+    def wanted(self, subscribed: set[str], streams: bool = True) -> set[str]:
+        """Topics to read now: every latched one, and (``streams``) the others some client is
+        subscribed to."""
+        return {t for t, i in self.topics.items() if i.latched or (streams and t in subscribed)}
 
 
 # --- the server ------------------------------------------------------------------------------------

@@ -8,7 +8,8 @@ Started by `flip run|stand|sim --live` as its own process (node ``flip_live``), 
   in the graph (polled, as the recorder's ``--all`` does), typed by the rosbags typestore.
 - Reading: latched (transient-local) topics always, reliable and transient local; the others only
   while a Foxglove client is subscribed to their channel, best effort, so that nobody watching
-  costs the lockstep's publishers nothing.
+  costs the lockstep's publishers nothing; with ``--hold-streams`` (flip) not before SIGUSR1 says
+  the graph runs (a client's reader must not count as one of those sim_node waits for).
 - Off the lockstep's CPU (cassie_flip_sim.lockstep.avoid_lockstep_cpu), niced by flip.
 - No executor: every POLL_S the loop takes what each subscription has queued, serialized
   (raw=True), and forwards the bytes with their receive time (the recorder's log time).
@@ -40,9 +41,10 @@ def _ignore(_msg):
 class LiveBridge:
     """One rclpy node (never spun) reading the graph's topics into a LiveServer."""
 
-    def __init__(self, node, server: LiveServer):
+    def __init__(self, node, server: LiveServer, streams: bool = True):
         self.node = node
         self.server = server
+        self.streams = streams          # may the streamed topics be read yet
         self.topics = LiveTopics()
         self.subs: dict[str, object] = {}
         self.unreadable: set[str] = set()
@@ -84,7 +86,7 @@ class LiveBridge:
         """Subscriptions to match what is wanted: latched topics, and the streamed topics some
         client is subscribed to."""
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-        want = self.topics.wanted(self.server.subscribed())
+        want = self.topics.wanted(self.server.subscribed(), self.streams)
         for topic in [t for t in self.subs if t not in want]:
             self.node.destroy_subscription(self.subs.pop(topic))
         for topic in want - set(self.subs):
@@ -110,18 +112,24 @@ class LiveBridge:
         return n
 
 
-def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, duration: float | None = None) -> int:
-    """Listen on host:port, then forward the graph's topics until SIGINT/SIGTERM (or ``duration``)."""
+def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, duration: float | None = None,
+          hold_streams: bool = False) -> int:
+    """Listen on host:port, then forward the graph's topics until SIGINT/SIGTERM (or ``duration``);
+    ``hold_streams``: the streamed topics only after SIGUSR1."""
     from cassie_flip_sim.lockstep import avoid_lockstep_cpu
     from .typestore import flip_typestore
     # off the lockstep's CPU, like the state publisher (before the server's and DDS's threads start)
     avoid_lockstep_cpu()
-    stop = {"flag": False}
+    stop = {"flag": False, "streams": not hold_streams}
 
     def _on_signal(signum, frame):
         stop["flag"] = True
+
+    def _on_release(signum, frame):
+        stop["streams"] = True
     signal.signal(signal.SIGINT, _on_signal)
     signal.signal(signal.SIGTERM, _on_signal)
+    signal.signal(signal.SIGUSR1, _on_release)      # before the serving line: flip may send it from then on
     try:
         server = LiveServer(port, host, typestore=flip_typestore())
     except OSError as e:
@@ -133,7 +141,7 @@ def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, durati
     node = rclpy.create_node(NODE_NAME, start_parameter_services=False)
     t0 = time.monotonic()
     try:
-        bridge = LiveBridge(node, server)
+        bridge = LiveBridge(node, server, streams=stop["streams"])
         next_discover = t0
         while not stop["flag"] and (duration is None or time.monotonic() - t0 < duration):
             server.replay_latched()
@@ -142,6 +150,9 @@ def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, durati
             if now >= next_discover:
                 bridge.discover()
                 next_discover = now + DISCOVER_S
+            if stop["streams"] and not bridge.streams:
+                print("live: the graph runs: streamed topics are read from now on", flush=True)
+                bridge.streams = True
             bridge.update()
             time.sleep(POLL_S)
     finally:
@@ -159,9 +170,11 @@ def main(argv=None) -> int:
     p.add_argument("--port", type=port_arg, default=DEFAULT_PORT, help=f"0 = a free one (default {DEFAULT_PORT})")
     p.add_argument("--domain", type=int, help="ROS_DOMAIN_ID (default: the environment's)")
     p.add_argument("--duration", type=float, help="wall seconds (default: until SIGINT/SIGTERM)")
+    p.add_argument("--hold-streams", action="store_true",
+                   help="read the streamed topics only after SIGUSR1 (flip sends it once the graph runs)")
     a = p.parse_args(argv)
     set_process_ros_env()
-    return serve(a.port, a.domain, duration=a.duration)
+    return serve(a.port, a.domain, duration=a.duration, hold_streams=a.hold_streams)
 
 
 if __name__ == "__main__":
