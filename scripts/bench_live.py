@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """What --live costs the lockstep: the same `flip` command run back to back without --live, with
 --live and nobody watching, and with --live and a client subscribed to every channel (as a Foxglove
-layout that shows everything would be), interleaved, REPEAT rounds; prints each run's real-time
+layout that shows everything would be), interleaved (the order rotated each round), REPEAT rounds; prints each run's real-time
 factor (sim time / wall time of the bag, summary.json), the simulator's and the controller's CPU per
 lockstep step (their logs: an extra reader of the 2 kHz topics costs the publisher there, whatever
 else the machine runs), the load average before the run, and what the client received.
@@ -110,7 +110,9 @@ def main() -> int:
           f"{'sim cpu/step':>12} {'tsc cpu/step':>12} {'wall s':>6} {'client msgs':>11} {'client cpu s':>12} "
           f"{'live cpu s':>10}", flush=True)
     for i in range(a.repeat):
-        for mode in MODES:
+        # each round in another order (off, live, live+client; then live, live+client, off; ...): a
+        # machine that changes pace within a round would otherwise favour one mode
+        for mode in MODES[i % len(MODES):] + MODES[:i % len(MODES)]:
             r = run_once(a.flip_args, mode, Path(a.out) / f"{mode.replace('+', '-')}-{i}")
             rows.append(r)
             print(f"{i:>5} {mode:>12} {r['load']:>5} {r['exit']:>4} {str(r['outcome']):>10} {r['sim_s']:>6} "

@@ -85,8 +85,12 @@ def test_latched_topics_are_always_read_the_others_only_while_watched():
     assert t.offer("/parameter_events", "rcl_interfaces/msg/ParameterEvent", False, 10) is None
     assert t.wanted(set()) == {"/robot_description"}
     assert t.wanted({"/odom", "/not_offered"}) == {"/robot_description", "/odom"}
-    # before the graph runs (flip's --hold-streams), a client's wish reads no stream yet
+    # before the graph runs (flip's --hold-streams), a client's wish reads no stream yet; once it
+    # runs, /clock is read whoever watches (the sim time of the log times)
     assert t.wanted({"/odom"}, streams=False) == {"/robot_description"}
+    t.offer("/clock", "rosgraph_msgs/msg/Clock", False, 1)
+    assert t.wanted(set()) == {"/robot_description", "/clock"}
+    assert t.wanted(set(), streams=False) == {"/robot_description"}
 
 
 # --- the server, as a WebSocket client sees it ------------------------------------------------------
@@ -165,10 +169,16 @@ def test_a_late_client_gets_the_latched_messages(server):
         c.wait_for_channels(["/robot_description"], 10)
         c.subscribe(["/robot_description"])
         wait_subscribed(server, "/robot_description")
-        assert server.replay_latched() == 1
+        assert server.replay_latched(444) == 1                 # stamped now, as a late ROS subscriber gets it
         got = [next(c.messages(10))[1]]
-    assert [(m.log_time, m.payload) for m in got] == [(333, urdf)]
-    assert server.replay_latched() == 0                       # once per new subscription
+    assert [(m.log_time, m.payload) for m in got] == [(444, urdf)]
+    assert server.replay_latched(555) == 0                    # once per new subscription
+
+
+def test_the_stamp_of_a_per_step_message():
+    from flip_tools.live import header_stamp_ns
+    assert header_stamp_ns(odometry(0.5)) == 1_000_000_005
+    assert header_stamp_ns(b"\x00\x01\x00\x00") is None
 
 
 def test_binary_frames_other_than_messages_are_not_messages():

@@ -58,16 +58,19 @@ def test_a_client_gets_the_graph_topics_as_cdr_and_latched_ones_late(tmp_path):
                 assert (ch["encoding"], ch["schemaEncoding"], ch["schemaName"]) == \
                     ("cdr", "ros2msg", CONTRACT_TOPICS[topic].msgtype), ch
             c.subscribe(["/odom"])
-            odom = []
+            odom, log_times = [], []
             for topic, m in c.messages(120):
                 assert topic == "/odom"
                 odom.append(ts.deserialize_cdr(m.payload, "nav_msgs/msg/Odometry"))
+                log_times.append(m.log_time)
                 if len(odom) == 200:
                     break
             assert len(odom) == 200
             assert {(o.header.frame_id, o.child_frame_id) for o in odom} == {("world", "pelvis")}
-            stamps = np.array([o.header.stamp.sec + 1e-9 * o.header.stamp.nanosec for o in odom])
+            stamps = np.array([o.header.stamp.sec * 10**9 + o.header.stamp.nanosec for o in odom])
             assert np.all(np.diff(stamps) > 0)                                # the simulation's steps, in order
+            assert np.all(stamps % 5_000_000 == 0)                           # on the 200 Hz grid of sim time
+            assert log_times == stamps.tolist()                               # log time = sim time
             assert 0.8 < np.median([o.pose.pose.position.z for o in odom]) < 1.2   # the pelvis, standing
             # late: the URDF and the fixed joints were published (latched) long before this subscription
             c.subscribe(["/robot_description", "/tf_static"])

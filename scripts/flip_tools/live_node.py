@@ -12,7 +12,9 @@ Started by `flip run|stand|sim --live` as its own process (node ``flip_live``), 
   the graph runs (a client's reader must not count as one of those sim_node waits for).
 - Off the lockstep's CPU (cassie_flip_sim.lockstep.avoid_lockstep_cpu), niced by flip.
 - No executor: every POLL_S the loop takes what each subscription has queued, serialized
-  (raw=True), and forwards the bytes with their receive time (the recorder's log time).
+  (raw=True), and forwards the bytes: the per-step streams on the sim-time grid (``--rate``, default
+  200 Hz of sim time; picked by cassie_flip_sim._rcl_io.take_on_grid), log time = sim time
+  (flip_tools.live).
 - Prints ``live: serving ws://127.0.0.1:PORT`` once it listens (flip reads the port from its log);
   a port it cannot bind ends it with exit 3 and the reason. SIGINT/SIGTERM stop it.
 """
@@ -24,7 +26,8 @@ import signal
 import sys
 import time
 
-from .live import DEFAULT_PORT, LIVE_HOST, SERVING_PREFIX, LiveServer, LiveTopics, port_arg
+from .live import (DEFAULT_PORT, LIVE_HOST, SERVING_PREFIX, STEP_STREAMS, STREAM_RATE_HZ, LiveServer, LiveTopics,
+                   header_stamp_ns, port_arg)
 from .rosenv import CONTRACT_TOPICS, message_class
 
 NODE_NAME = "flip_live"
@@ -41,10 +44,12 @@ def _ignore(_msg):
 class LiveBridge:
     """One rclpy node (never spun) reading the graph's topics into a LiveServer."""
 
-    def __init__(self, node, server: LiveServer, streams: bool = True):
+    def __init__(self, node, server: LiveServer, streams: bool = True, rate_hz: float = STREAM_RATE_HZ):
         self.node = node
         self.server = server
         self.streams = streams          # may the streamed topics be read yet
+        self.grid_ns = int(round(1e9 / rate_hz)) if rate_hz > 0 else 0   # 0: every message
+        self.sim_ns = 0                 # newest sim time seen: the log time of what has no stamp of its own
         self.topics = LiveTopics()
         self.subs: dict[str, object] = {}
         self.unreadable: set[str] = set()
@@ -101,19 +106,38 @@ class LiveBridge:
             self.subs[topic] = self.node.create_subscription(message_class(info.msgtype), topic, _ignore, qos,
                                                              raw=True)
 
+    def _take_stamped(self, sub) -> list:
+        """(stamp ns, bytes) of a per-step stream's queued messages on the grid (all: grid_ns 0)."""
+        if self.grid_ns:
+            from cassie_flip_sim import _rcl_io
+            return _rcl_io.take_on_grid(sub.handle.pointer, self.grid_ns)
+        out = []
+        while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
+            out.append((header_stamp_ns(r[0]) or self.sim_ns, r[0]))
+        return out
+
     def take_all(self) -> int:
-        """Forward every queued message, stamped with its receive time; how many."""
+        """Forward what is queued: the per-step streams first (their stamps advance the sim time),
+        then the rest, stamped with the newest sim time; how many were forwarded."""
         n = 0
         forward = self.server.forward
+        for topic in STEP_STREAMS:
+            sub = self.subs.get(topic)
+            for ns, raw in (self._take_stamped(sub) if sub is not None else ()):
+                self.sim_ns = max(self.sim_ns, ns)
+                forward(topic, raw, ns)
+                n += 1
         for topic, sub in self.subs.items():
+            if topic in STEP_STREAMS:
+                continue
             while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
-                forward(topic, r[0], r[1].get("received_timestamp") or time.time_ns())
+                forward(topic, r[0], self.sim_ns)
                 n += 1
         return n
 
 
 def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, duration: float | None = None,
-          hold_streams: bool = False) -> int:
+          hold_streams: bool = False, rate_hz: float = STREAM_RATE_HZ) -> int:
     """Listen on host:port, then forward the graph's topics until SIGINT/SIGTERM (or ``duration``);
     ``hold_streams``: the streamed topics only after SIGUSR1."""
     from cassie_flip_sim.lockstep import avoid_lockstep_cpu
@@ -141,10 +165,10 @@ def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, durati
     node = rclpy.create_node(NODE_NAME, start_parameter_services=False)
     t0 = time.monotonic()
     try:
-        bridge = LiveBridge(node, server, streams=stop["streams"])
+        bridge = LiveBridge(node, server, streams=stop["streams"], rate_hz=rate_hz)
         next_discover = t0
         while not stop["flag"] and (duration is None or time.monotonic() - t0 < duration):
-            server.replay_latched()
+            server.replay_latched(bridge.sim_ns)
             bridge.take_all()
             now = time.monotonic()
             if now >= next_discover:
@@ -172,9 +196,12 @@ def main(argv=None) -> int:
     p.add_argument("--duration", type=float, help="wall seconds (default: until SIGINT/SIGTERM)")
     p.add_argument("--hold-streams", action="store_true",
                    help="read the streamed topics only after SIGUSR1 (flip sends it once the graph runs)")
+    p.add_argument("--rate", type=float, default=STREAM_RATE_HZ, metavar="HZ",
+                   help=f"sim-time rate the per-step streams are forwarded at (default {STREAM_RATE_HZ:g}; "
+                        f"0: every message)")
     a = p.parse_args(argv)
     set_process_ros_env()
-    return serve(a.port, a.domain, duration=a.duration, hold_streams=a.hold_streams)
+    return serve(a.port, a.domain, duration=a.duration, hold_streams=a.hold_streams, rate_hz=a.rate)
 
 
 if __name__ == "__main__":
