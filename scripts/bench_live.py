@@ -103,6 +103,7 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--repeat", type=int, default=2)
     p.add_argument("--out", default="/tmp/bench_live")
+    p.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES), help="default: all three")
     p.add_argument("flip_args", nargs="+", help="the flip command after --, without --out")
     a = p.parse_args()
     rows = []
@@ -112,14 +113,15 @@ def main() -> int:
     for i in range(a.repeat):
         # each round in another order (off, live, live+client; then live, live+client, off; ...): a
         # machine that changes pace within a round would otherwise favour one mode
-        for mode in MODES[i % len(MODES):] + MODES[:i % len(MODES)]:
+        modes = [m for m in MODES if m in a.modes]
+        for mode in modes[i % len(modes):] + modes[:i % len(modes)]:
             r = run_once(a.flip_args, mode, Path(a.out) / f"{mode.replace('+', '-')}-{i}")
             rows.append(r)
             print(f"{i:>5} {mode:>12} {r['load']:>5} {r['exit']:>4} {str(r['outcome']):>10} {r['sim_s']:>6} "
                   f"{r['rtf']:>6} {r['tick_median_us']:>7} {str(r['sim_cpu_us']):>12} {str(r['tsc_cpu_us']):>12} "
                   f"{r['wall_s']:>6} {r['client_messages']:>11} {r['client_cpu_s']:>12} {str(r['live_cpu_s']):>10}",
                   flush=True)
-    for mode in MODES:
+    for mode in a.modes:
         rtfs = [r["rtf"] for r in rows if r["mode"] == mode and r["rtf"]]
         if rtfs:
             print(f"{mode:>12}: RTF mean {sum(rtfs) / len(rtfs):.3f} (min {min(rtfs):.3f}, max {max(rtfs):.3f})")

@@ -6,12 +6,14 @@ Started by `flip run|stand|sim --live` as its own process (node ``flip_live``), 
 
 - Channels: the contract topics of docs/architecture.md at once, and every other topic that appears
   in the graph (polled, as the recorder's ``--all`` does), typed by the rosbags typestore.
-- Reading: latched (transient-local) topics always, reliable and transient local; the others only
-  while a Foxglove client is subscribed to their channel, best effort, so that nobody watching
-  costs the lockstep's publishers nothing; with ``--hold-streams`` (flip) not before SIGUSR1 says
-  the graph runs (a client's reader must not count as one of those sim_node waits for).
+- Reading: latched (transient-local) topics always, reliable and transient local; /clock (the sim
+  time) and the others best effort, not before SIGUSR1 says the graph runs with ``--hold-streams``
+  (flip: a client's reader must not count as one of those sim_node waits for), and the others only
+  while a Foxglove client is subscribed to their channel, so that nobody watching adds no reader
+  to the lockstep's per-step topics.
 - Off the lockstep's CPU (cassie_flip_sim.lockstep.avoid_lockstep_cpu), niced by flip.
-- No executor: every POLL_S the loop takes what each subscription has queued, serialized
+- No executor: every POLL_S (IDLE_POLL_S while no client is subscribed to anything: a live view
+  nobody watches wakes up 20 times a second) the loop takes what each subscription has queued, serialized
   (raw=True), and forwards the bytes: the per-step streams on the sim-time grid (``--rate``, default
   200 Hz of sim time; picked by cassie_flip_sim._rcl_io.take_on_grid), log time = sim time
   (flip_tools.live).
@@ -32,6 +34,7 @@ from .rosenv import CONTRACT_TOPICS, message_class
 
 NODE_NAME = "flip_live"
 POLL_S = 0.01          # take what is queued, forward it
+IDLE_POLL_S = 0.05     # the same while nobody is subscribed (latched topics kept, /clock followed)
 DISCOVER_S = 0.5       # graph poll: new topics, and subscriptions to follow the clients'
 LATCHED_DEPTH = 10     # kept of a latched topic outside the contract table
 READ_DEPTH = 1000      # reader queue of a streamed topic (best effort: older messages dropped)
@@ -53,13 +56,12 @@ class LiveBridge:
         self.topics = LiveTopics()
         self.subs: dict[str, object] = {}
         self.unreadable: set[str] = set()
-        self.own_topics = {node.get_fully_qualified_name() + "/status"}
         for spec in CONTRACT_TOPICS.values():
             self._offer(spec.name, spec.msgtype, spec.transient_local, spec.depth, spec.reliable)
         self.update()
 
     def _offer(self, topic, msgtype, transient_local, depth, reliable) -> None:
-        if topic in self.unreadable or topic in self.own_topics:
+        if topic in self.unreadable:
             return
         try:
             message_class(msgtype)
@@ -178,7 +180,7 @@ def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, durati
                 print("live: the graph runs: streamed topics are read from now on", flush=True)
                 bridge.streams = True
             bridge.update()
-            time.sleep(POLL_S)
+            time.sleep(POLL_S if server.subscribed() else IDLE_POLL_S)
     finally:
         server.close()
         node.destroy_node()
