@@ -53,6 +53,12 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
                                                                       "planner": 0, "tsc": 0}
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
+    # the hop's landing tracks the planner's re-solve at the (last) touch-down: measured (from the bag)
+    # against planned leg length and COM x over the landing (a landing off the plan: L off by 0.1-0.3 m)
+    land = s["tracking"]["landing"]
+    assert land["t0"] == pytest.approx(td[-1], abs=0.01) and land["t1"] > land["t0"] + 0.5
+    assert land["L"]["rms"] < 0.08 and land["x_com"]["rms"] < 0.02 and land["H_pitch"]["rms"] < 3.0, land
+    assert s["landing_peak_flywheel_rpm"] is not None and s["flight_peak_flywheel_rpm"] is not None
     # the run ends where the tool planned it (touch-down + settle), not seconds later
     run = json.loads((out / "run.json").read_text())
     end = run["end_sim_time"]

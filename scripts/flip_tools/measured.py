@@ -29,6 +29,13 @@ def bag_mjcf(data: BagData) -> str:
 def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
     when the bag lacks the state or a model of this robot."""
+    cache = data.__dict__.setdefault("_measured_outputs", {})    # summary and plots both ask
+    if every_s not in cache:
+        cache[every_s] = _measured_outputs(data, every_s)
+    return cache[every_s]
+
+
+def _measured_outputs(data: BagData, every_s: float) -> dict | None:
     mjcf, js, od = bag_mjcf(data), data.get("/joint_states"), data.get("/odom")
     if not mjcf or js is None or od is None or not len(js["t"]) or not len(od["t"]):
         return None
