@@ -53,3 +53,22 @@ def test_peak_abs_over_a_window():
     v = np.sin(10 * t) * 100
     assert peak_abs(t, v, 0.0, 0.25) == pytest.approx(np.max(np.abs(v[:3])))
     assert peak_abs(t, v, 5.0, 6.0) is None
+
+
+def test_fig6_draws_each_reference_until_the_next_one_starts():
+    """A landing re-solved after a rebound replaces the first landing from its start on: the plot
+    draws what the controller was given at each time, not two landings over each other."""
+    from flip_tools.bag import BagData
+    from flip_tools.plots import _ref_series
+    refs = [dict(_ref(domain=1, start=1.0), plan_id=1), dict(_ref(domain=3, start=2.0), plan_id=1),
+            dict(_ref(domain=3, start=2.3, offset=0.05), plan_id=1),
+            dict(_ref(domain=1, start=0.0), plan_id=0)]                   # an older plan: not drawn
+    refs = refs[3:] + refs[:3]
+    data = BagData(Path("."), topics={"/fslip/reference": {"count": 4}},
+                   arrays={"/fslip/reference": {"refs": refs}})
+    series = _ref_series(data, "L")
+    assert [d for d, _, _ in series] == [1, 3, 3]
+    (_, t_jump, _), (_, t_first, _), (_, t_second, L_second) = series
+    assert t_jump[-1] <= 2.0 and t_first[0] == 2.0 and t_first[-1] <= 2.3     # cut where the next begins
+    assert t_second[0] == pytest.approx(2.3) and t_second[-1] == pytest.approx(3.3)
+    assert L_second[0] == pytest.approx(0.95)

@@ -43,19 +43,24 @@ def _refs(data):
 
 
 def _ref_series(data, name):
-    """[(domain, t_abs, value)] of one reference output, newest plan only."""
+    """[(domain, t_abs, value)] of one reference output, newest plan only, each reference up to the
+    start of the next one (a landing re-solved after a rebound replaces the first one from then on:
+    the plot shows what the controller was given at each time)."""
     refs = _refs(data)
     if not refs:
         return []
     last_plan = refs[-1]["plan_id"]
+    plan = sorted((r for r in refs if r["plan_id"] == last_plan), key=lambda r: r["start_time"])
     out = []
-    for r in refs:
-        if r["plan_id"] != last_plan or name not in r["output_names"]:
+    for i, r in enumerate(plan):
+        if name not in r["output_names"]:
             continue
         v = np.asarray(r["value"])
         if v.ndim != 2:
             continue
-        out.append((r["domain"], r["start_time"] + r["t"], v[:, r["output_names"].index(name)]))
+        t = r["start_time"] + np.asarray(r["t"], float)
+        keep = t <= plan[i + 1]["start_time"] if i + 1 < len(plan) else np.ones(len(t), bool)
+        out.append((r["domain"], t[keep], v[keep, r["output_names"].index(name)]))
     return out
 
 
