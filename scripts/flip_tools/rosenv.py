@@ -135,6 +135,8 @@ CONTRACT_TOPICS: dict[str, TopicSpec] = {t.name: t for t in [
     TopicSpec("/tf_static", "tf2_msgs/msg/TFMessage", True, True, 1),
     TopicSpec("/left_foot/wrench", "geometry_msgs/msg/WrenchStamped", False, False, 1),
     TopicSpec("/right_foot/wrench", "geometry_msgs/msg/WrenchStamped", False, False, 1),
+    TopicSpec("/fslip/com_path", "nav_msgs/msg/Path", True, True, 1),
+    TopicSpec("/fslip/targets", "visualization_msgs/msg/MarkerArray", True, True, 1),
 ]}
 
 
