@@ -64,10 +64,6 @@ def measured_state(ev):
         support_center=np.array([ev.support_center.x, ev.support_center.y, ev.support_center.z]))
 
 
-def _vec(v):
-    return np.array([v.x, v.y, v.z])
-
-
 def com_of_standing(state, robot):
     """World COM of the robot standing with its pelvis at ``state`` (its standing COM in the pelvis
     frame carried by the measured pelvis, as the jumping plan's x_start is found)."""
