@@ -69,16 +69,16 @@ def _ref_series(data, name):
 
 def planned_normal_force(data):
     """[(domain, t_abs, Fz)] of the FSLIP's ground force along each ground reference of the newest
-    plan (fslip_planner.plan_geometry.ground_force, the reference's fslip_mass and leg_offset; a
+    plan, each up to the start of the next one as ``_ref_series`` draws them
+    (fslip_planner.plan_geometry.ground_force, the reference's fslip_mass and leg_offset; a
     reference without them (older bags, a fallback landing) uses the robot's mass and L as r)."""
     from fslip_planner.plan_geometry import ground_force
     refs = _refs(data)
     if not refs:
         return []
+    plan = sorted((r for r in refs if r["plan_id"] == refs[-1]["plan_id"]), key=lambda r: r["start_time"])
     mass, out = None, []
-    for r in refs:
-        if r["plan_id"] != refs[-1]["plan_id"]:
-            continue
+    for i, r in enumerate(plan):
         p = r["parameters"]
         m = p.get("fslip_mass")
         if m is None:
@@ -89,7 +89,9 @@ def planned_normal_force(data):
         f = ground_force(r["t"], r["output_names"], r["value"], r["d_value"], r["dd_value"], m,
                          p.get("leg_offset", 0.0))
         if f is not None:
-            out.append((r["domain"], r["start_time"] + f["t"], f["Fz"]))
+            t = r["start_time"] + f["t"]
+            keep = t <= plan[i + 1]["start_time"] if i + 1 < len(plan) else np.ones(len(t), bool)
+            out.append((r["domain"], t[keep], f["Fz"][keep]))
     return out
 
 
