@@ -72,3 +72,26 @@ def test_fig6_draws_each_reference_until_the_next_one_starts():
     assert t_jump[-1] <= 2.0 and t_first[0] == 2.0 and t_first[-1] <= 2.3     # cut where the next begins
     assert t_second[0] == pytest.approx(2.3) and t_second[-1] == pytest.approx(3.3)
     assert L_second[0] == pytest.approx(0.95)
+
+
+def test_fig6_draws_a_landing_pitch_plan_on_the_turn_the_pelvis_is_in():
+    """A landing plans the pelvis pitch near 0 rad; after a backflip the pelvis is there at -2pi, and
+    the plan is drawn there (not a full turn away from the measured line)."""
+    from flip_tools.bag import BagData
+    from flip_tools.plots import _plot_ref
+
+    class Ax:
+        lines = []
+
+        def plot(self, t, v, *a, **k):
+            self.lines.append((np.asarray(t), np.asarray(v)))
+    ref = _ref(domain=3, start=2.0)
+    ref["value"][:, 3] = 0.05                                   # phi_pitch planned: 0.05 rad
+    data = BagData(Path("."), topics={"/fslip/reference": {"count": 1}},
+                   arrays={"/fslip/reference": {"refs": [dict(ref, plan_id=1)]}})
+    ax = Ax()
+    measured = (np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, -3.0, -2 * np.pi + 0.1, -2 * np.pi]))
+    assert _plot_ref(ax, data, "phi_pitch", turns=measured)
+    assert np.allclose(ax.lines[-1][1], 0.05 - 2 * np.pi)
+    _plot_ref(ax, data, "phi_pitch")                             # without the measured turn: as planned
+    assert np.allclose(ax.lines[-1][1], 0.05)

@@ -128,9 +128,15 @@ def _missing(ax, what):
             color="0.4", fontsize=9)
 
 
-def _plot_ref(ax, data, name, scale=1.0, label="planned"):
+def _plot_ref(ax, data, name, scale=1.0, label="planned", turns=None):
+    """The newest plan's ``name`` (:func:`_ref_series`).  ``turns``: (t, angle) of the measured
+    angle (rad): each reference is drawn on the measured turn it starts in (a landing plans the pelvis
+    near 0 rad; after a somersault the pelvis is there at ±2π)."""
     series = _ref_series(data, name)
     for i, (dom, t, v) in enumerate(series):
+        if turns is not None and len(t) and len(turns[0]):
+            at = float(np.interp(t[0], *turns))
+            v = v + 2 * np.pi * np.round((at - v[0]) / (2 * np.pi))
         ax.plot(t, v * scale, "--", color="C3", lw=1.5, label=label if i == 0 else None)
     return bool(series)
 
@@ -209,10 +215,10 @@ def _fig6(data, path):
 
     ax = axs[4]
     ax.set_ylabel("pelvis pitch (deg)")
-    have = _plot_ref(ax, data, "phi_pitch", scale=180 / np.pi)
-    if od is not None and len(od["pos"]) > 1:
-        t, _ = odom_time(od)
-        ax.plot(t, np.degrees(pitch_unwrapped(od["quat"])), color="C0", label="measured (/odom)")
+    pitch = (odom_time(od)[0], pitch_unwrapped(od["quat"])) if od is not None and len(od["pos"]) > 1 else None
+    have = _plot_ref(ax, data, "phi_pitch", scale=180 / np.pi, turns=pitch)
+    if pitch is not None:
+        ax.plot(pitch[0], np.degrees(pitch[1]), color="C0", label="measured (/odom)")
         have = True
     if not have:
         _missing(ax, "/odom")
