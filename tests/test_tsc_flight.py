@@ -16,7 +16,7 @@ from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from launched_flip import flight_reference, launch
 from tsc_controller import Controller, Domain, StateConverter
-from tsc_controller.domains import leg_catch
+from tsc_controller.profiles import leg_catch
 
 T_FLIGHT = 0.9
 

@@ -158,7 +158,7 @@ def test_a_weight_changed_between_ticks_is_used(controllers):
     """An output's weight may change from tick to tick (the own landing's H_pitch weight rises after
     touch-down): the cached task must solve with the new weight, i.e. give the torques of a controller
     built with that weight, and not those of the weight it first saw."""
-    from tsc_controller.domains import DEFAULT_GAINS
+    from tsc_controller.config import DEFAULT_GAINS
     ctl = controllers["daqp"]
     light = Controller(export_mjcf(), solver="daqp", gains=dict(DEFAULT_GAINS, H_pitch=(0.05, 10.0, 0.0)))
     rng = np.random.default_rng(5)

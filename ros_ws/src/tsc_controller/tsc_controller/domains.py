@@ -1,6 +1,9 @@
-"""Domains (paper §II-B, §V-A), references, and the :class:`Controller` facade.
+"""The :class:`Controller` facade: domain switching and the outputs and targets of each domain
+(paper §II-B, §V-A).
 
-Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs per domain:
+Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3 (:class:`reference.Domain`;
+the references are :class:`reference.SampledReference`, the settings :class:`config.ControllerConfig`,
+the quintic and leg-catch profiles in :mod:`profiles`).  Outputs per domain:
 
 * STANDING — the jumping/landing outputs with constant desired values: H_pitch -> 0,
   L -> L_stand, (x_com, y_com) -> middle of the feet, pelvis (roll, pitch, yaw) -> (0, 0, feet heading);
@@ -11,7 +14,7 @@ Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs p
   values.
 * FLIGHT — Y1 = H_flywheel - H_flywheel^des(t) (eq. Y^F_1);  t < T1: per-leg L and the motor joints
   except the knees held at their lift-off values q+, and the pelvis y axis held along world y (not in
-  the paper: see DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
+  the paper: see config.DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
   pitch -> 0, hip roll/yaw held (eq. Y^F_2), per leg since Cassie has two.
 
 Switching: a JUMPING reference whose start time has come starts the flip (if it is not more than
@@ -40,439 +43,24 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from enum import IntEnum
 
 import numpy as np
 import pinocchio as pin
 
 from . import outputs as O
-from .dynamics import BACKENDS, SIDES, Dynamics
+from .config import ControllerConfig
+from .dynamics import SIDES, Dynamics
 from .limits import TorqueLimits
+from .profiles import LEG_RISE_TIME, leg_catch, leg_catch_duration, quintic
+from .reference import Domain, SampledReference
 from .state import StateConverter
-from .tsc import SOLVERS, TSC, Desired
+from .tsc import TSC, Desired
 
-
-class Domain(IntEnum):
-    STANDING = 0
-    JUMPING = 1
-    FLIGHT = 2
-    LANDING = 3
-
-
+#: ContactEvent.event values
 LIFT_OFF, TOUCH_DOWN, BODY_CONTACT = 0, 1, 2
-
-
-class SampledReference:
-    """A FlipReference in plain Python: samples ``t`` (s from start_time) x ``names``.
-
-    ``value``, ``d_value``, ``dd_value`` are (len(t), len(names)) (or flat row-major, as in the message).
-    """
-
-    def __init__(self, domain, t, names, value, d_value=None, dd_value=None, start_time=0.0,
-                 plan_id=0, parameters=None):
-        self.domain = Domain(int(domain))
-        self.t = np.asarray(t, float)
-        self.names = list(names)
-        n, k = len(self.t), len(self.names)
-
-        def arr(x):
-            return np.zeros((n, k)) if x is None or len(x) == 0 else np.asarray(x, float).reshape(n, k)
-        self.value, self.d_value, self.dd_value = arr(value), arr(d_value), arr(dd_value)
-        self._rows = np.concatenate((self.value, self.d_value, self.dd_value), axis=1)   # sampled at once
-        self.start_time = float(start_time)
-        self.plan_id = int(plan_id)
-        self.parameters = dict(parameters or {})
-        self._col = {nm: i for i, nm in enumerate(self.names)}
-
-    @classmethod
-    def from_msg(cls, msg):
-        """From a flip_msgs/FlipReference (duck-typed; no ROS import here)."""
-        st = msg.start_time.sec + 1e-9 * msg.start_time.nanosec
-        return cls(msg.domain, msg.t, msg.output_names, msg.value, msg.d_value, msg.dd_value, st,
-                   msg.plan_id, dict(zip(msg.parameter_names, msg.parameter_values)))
-
-    @property
-    def duration(self):
-        return float(self.t[-1]) if len(self.t) else 0.0
-
-    def has(self, name):
-        return name in self._col
-
-    def sample(self, tau):
-        """{name: (value, d_value, dd_value)} at tau (s from the reference's origin), clamped to the ends."""
-        t = self.t
-        if tau <= t[0]:
-            i, a = 0, 0.0
-        elif tau >= t[-1]:
-            i, a = len(t) - 2, 1.0
-        else:
-            i = int(np.searchsorted(t, tau)) - 1
-            a = (tau - t[i]) / (t[i + 1] - t[i])
-        R = self._rows
-        row = (R[0] if len(t) == 1 else (1 - a) * R[i] + a * R[i + 1]).tolist()
-        k = len(self.names)
-        return {nm: (row[c], row[k + c], row[2 * k + c]) for nm, c in self._col.items()}
-
-
-def quintic(y0, y1, T, s, v0=None):
-    """Quintic from (y0, v0, 0) to (y1, 0, 0) over T (min-jerk when v0 = 0), at time s: (y, ydot, yddot).
-
-    y = y0 + (y1 - y0) p(x) + v0 (s + T r(x)),  x = s/T,  p = 10x^3 - 15x^4 + 6x^5,  r = -6x^3 + 8x^4 - 3x^5."""
-    if T <= 0 or s >= T:
-        y1 = np.asarray(y1, float)
-        z = np.zeros(y1.shape)
-        return y1, z, z
-    x = max(s, 0.0) / T
-    x2 = x * x
-    x3 = x2 * x
-    p, dp, ddp = x3 * (10 - 15 * x + 6 * x2), x2 * (30 - 60 * x + 30 * x2) / T, x * (60 - 180 * x + 120 * x2) / T ** 2
-    r, dr, ddr = x3 * (-6 + 8 * x - 3 * x2), x2 * (-18 + 32 * x - 15 * x2) / T, x * (-36 + 96 * x - 60 * x2) / T ** 2
-    if (type(y0) is np.ndarray and type(y1) is np.ndarray and y0.dtype == y1.dtype == np.float64
-            and y0.ndim == 1 and y0.shape == y1.shape
-            and (v0 is None or (type(v0) is np.ndarray and v0.dtype == np.float64 and v0.shape == y0.shape))):
-        # the expressions below element by element in Python floats (the same operations in the same
-        # order: the same numbers), for the 1-3 element outputs of a tick, where numpy's per-call cost
-        # is most of the time
-        a, b = y0.tolist(), y1.tolist()
-        d = [bi - ai for ai, bi in zip(a, b)]
-        if v0 is None:
-            return (np.array([ai + p * di for ai, di in zip(a, d)]), np.array([dp * di for di in d]),
-                    np.array([ddp * di for di in d]))
-        c0, c1, c2 = max(s, 0.0) + T * r, 1.0 + T * dr, T * ddr
-        v = v0.tolist()
-        return (np.array([ai + p * di + c0 * vi for ai, di, vi in zip(a, d, v)]),
-                np.array([dp * di + c1 * vi for di, vi in zip(d, v)]),
-                np.array([ddp * di + c2 * vi for di, vi in zip(d, v)]))
-    y1 = np.asarray(y1, float)
-    d = y1 - y0
-    if v0 is None:
-        return y0 + p * d, dp * d, ddp * d
-    return y0 + p * d + (max(s, 0.0) + T * r) * v0, dp * d + (1.0 + T * dr) * v0, ddp * d + T * ddr * v0
-
-
-#: s, the leg's min-jerk rise to the standing length after the catch (leg_catch)
-LEG_RISE_TIME = 1.5
-
-
-def leg_catch(L0, v0, L1, t, decel=15.0, L_min=0.50, rise_time=LEG_RISE_TIME):
-    """Leg length after a touch-down at speed v0 < 0: constant deceleration a over the stroke
-    d = v0^2 / (2 a) (d capped at L0 - L_min, a raised to match), then a min-jerk rise to L1 over
-    ``rise_time``.  Returns (L, Ldot, Lddot) at time t after touch-down.  A quintic that starts with
-    the touch-down velocity either overshoots the leg stroke or ends with a deceleration above g
-    that throws the robot off the ground again; this profile does neither."""
-    if v0 >= 0.0:      # already rising (a re-anchor mid-landing): keep that velocity, do not stop the leg
-        return quintic(np.array([L0]), np.array([L1]), rise_time, t, np.array([v0]))
-    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
-    a = v0 * v0 / (2.0 * d)
-    tc = -v0 / a
-    if t < tc:
-        return np.array([L0 + v0 * t + 0.5 * a * t * t]), np.array([v0 + a * t]), np.array([a])
-    return quintic(np.array([L0 - d]), np.array([L1]), rise_time, t - tc)
-
-
-def leg_catch_duration(L0, v0, decel=15.0, L_min=0.50, rise_time=LEG_RISE_TIME):
-    """Time after which :func:`leg_catch` has reached its final value."""
-    if v0 >= 0.0:
-        return rise_time
-    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
-    return -v0 / (v0 * v0 / (2.0 * d)) + rise_time
-
-
-DEFAULT_GAINS = {
-    # name: (weight, kp, kd)
-    "H_pitch": (1.0, 10.0, 0.0),
-    "L": (10.0, 100.0, 20.0),
-    # COM weight 100: with 10, per unit of pitch moment a COM error cost ~100x less than an H_pitch
-    # error, so the QP took the landing's momentum removal from horizontal ground forces
-    # (moment h F_x) and let the COM run off the feet (measured: x_com 0.5 m off after a 0.6 m drop
-    # with the flywheel at 150 rad/s; lands with 100)
-    "com": (100.0, 100.0, 20.0),
-    "pelvis": (1.0, 100.0, 20.0),
-    "H_flywheel": (1.0, 20.0, 0.0),
-    # leg length in flight, weight 100: with 10 the QP gave up the tuck and then folded the legs to help
-    # the saturated flywheel turn the body (measured frontflip: touch-down on 0.71 m legs at 3.3 m/s,
-    # knees on the ground 0.27 s later; with 100, on 1.06-1.12 m legs, touch-down within 0.1 rad)
-    "L_leg": (100.0, 100.0, 20.0),
-    "joints": (1.0, 100.0, 20.0),
-    "beta_leg": (10.0, 100.0, 20.0),
-    # FLIGHT after T1: the feet flat for the touch-down.  A frontflip's feet, held on the pelvis until
-    # T1, are near vertical then; with (1, 100, 20) the frontflip touched down heel first, toes 28 deg
-    # up (42 with the sine output FootPitch was before).  Measured offline (scripts/bench_landings.py,
-    # its 15 start times and 15 others, 0.35 ... 3.45 s; backflips / frontflips landed):
-    # (1, 100, 20) 15 / 13 and 15 / 14; (10, 400, 40) 15 / 12; (10, 900, 60) 15 / 15 and 15 / 14,
-    # toes 13 deg up at touch-down.  It trades against flip C (--platform 0.5 --apex 1.2, 15 start
-    # times): landed 9 with (1, 100, 20), 5 with (10, 900, 60) (3-6 with the gains between; 4 with the
-    # sine); --ground-offset 0.1 in place (which came down on the take-off ground below the raised area:
-    # a plain frontflip, not flip D): 13 and 15 (11 with the sine)
-    "toe_pitch": (10.0, 900.0, 60.0),
-    "swing": (10.0, 400.0, 40.0),
-    "pitch": (10.0, 100.0, 20.0),
-    # FLIGHT of a somersault, before T1: the pelvis y axis (the flywheel's) held along world y
-    # (PelvisAxisTilt; the hip joints are the only actuators that turn the pelvis off that axis).
-    # Pitch is the robot's intermediate principal axis (tucked, flywheel spin excluded: I_roll 2.2-3.2
-    # > I_pitch 2.2-2.7 > I_yaw 0.8-1.3 kg*m^2) and, while the flywheel spins against the body to speed
-    # the turn, the somersault about it is unstable (gyrostat): roll/yaw of 2-6 deg and transverse
-    # rates of 1-3 rad/s grew by touch-down; of the graph frontflips of earlier runs, all 12 with more
-    # than 0.9 rad/s fell.  Measured offline (tests/offline_flip.py, motor speed scale 3, 260 N*m, apex
-    # 1.3 m, 15 start times from 0.3 to 3.6 s; landing settings of then, catch_decel 15, landing_moment
-    # 12), landed backflips / frontflips: without 5 / 1, weight
-    # 5: 12 / 2, 10: 11 / 5, 20: 6 / 4; weight 10 over the whole flight: 2 / 5 of 10 (the hips, still
-    # turning the pelvis after T1, misplaced the feet).  Not in a hop (no turn, nothing unstable).
-    "axis": (10.0, 100.0, 20.0),
-}
-
-# JUMPING overrides (name: (weight, kp, kd)).  H_pitch keeps its ground weight, 1: with 3 the QP unloaded
-# the feet to shape the momentum (the COM ahead of the centre of pressure, less normal force turns the
-# body faster): flip A's feet left the ground 0.1 s into its crouch (docs/measurements.md).  COM weight
-# 100 as on the ground: with 10 the COM ran ahead of the plan and the jumps left too fast forward (measured, motor
-# speed scale 3, apex 1.3 m, tests/offline_flip.py: frontflip +0.86 m/s against -0.23 planned, COM
-# 0.25 m ahead; backflip +0.70 against +0.23); with 100 and the JUMPING CoP margin (ControllerConfig)
-# -0.12 and +0.20 m/s, COM within 0.02 m of the plan.
-JUMPING_GAINS = {"com": (100.0, 100.0, 20.0)}
-
-# STANDING overrides: COM kd 40.  With 20 a push rocked the standing robot from foot to foot without
-# end (the QP took the weight off one foot, then the other: a 75 N, 0.1 s sideways push at the pelvis
-# rocked it for 6 s and it fell 4.8 s after the push; a 150 N forward push, the same rocking)
-STANDING_GAINS = {"com": (100.0, 100.0, 40.0)}
 
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
-
-
-@dataclass
-class ControllerConfig:
-    solver: str = "daqp"              # measured fastest (scripts/bench_tsc.py); "proxqp" also works
-    # "native": the compiled tick (tsc_controller._native); "python": the numpy reference it is tested
-    # against (tests/test_tsc_native.py), ~2x slower per tick
-    backend: str = "native"
-    # native backend: the ground domains' per-tick targets (feet contact and anchors, momentum removal,
-    # leg catch, COM and pelvis blends) compiled (tsc_controller._native.GroundTargets), or in Python,
-    # the reference they are tested against (tests/test_tsc_native.py: the same torques to the bit).
-    # Compiled, a backflip's tick replayed takes ~70 us instead of ~100 (most of the rest is compiled).
-    compiled_targets: bool = True
-    reg: float = 1e-4
-    mu: float = 0.6
-    f_min: float = 1.0                # N, least normal force at toe and heel on the ground (unilateral)
-    # domain -> f_min there (overrides).  JUMPING and LANDING 25 N: near 0 the QP planned the feet all
-    # but unloaded whenever its tasks asked the body to decelerate (after the landing's leg catch, in
-    # the crouch) and the compliant legs took them off the ground: a rebound 0.3 s after a touch-down
-    # that tipped the robot, a crouch "lift-off" that aborted the flip (docs/measurements.md, "least
-    # normal force").  STANDING keeps 1: its start transient sank 2 mm deeper with 25.
-    f_min_domains: dict = field(default_factory=lambda: {1: 25.0, 3: 25.0})
-    cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
-    # domain -> cop_margin there (overrides).  JUMPING 0.2: without a margin the frontflip's heels rose
-    # 8 cm in the push-off (the flat-foot QP kept them at f_min, the real feet rolled onto the toes)
-    # and it left with 1.86 m/s up against 2.31 planned; with it the heels stayed down (3 mm), 2.13 m/s
-    # (measured offline, motor speed scale 3, apex 1.3 m).  With the JUMPING COM weight 100 but no
-    # margin the backflip lifted off 0.77 s early.
-    cop_margin_domains: dict = field(default_factory=lambda: {1: 0.2})
-    rigid_springs: bool = True
-    motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
-    flywheel_torque: float | None = None   # flywheel motor's limit, N·m (None or 0: 195), as in the simulator
-    # domains in which the controller is fed zero leaf-spring rates (rigid-spring model).  JUMPING: the
-    # measured rates, seen through the outputs' J v and drift, make the torques chatter at the spring
-    # frequency and the feet unload early in the push (measured: lift-off 0.08-0.12 s into a 1 s
-    # push).  Not STANDING/LANDING: there the leaf-spring modes then go undamped (a 75 N, 0.1 s lateral
-    # push rocks the robot left-right until it falls, flip landings fail the same way).  Never FLIGHT:
-    # the momenta need every rate.
-    spring_rate_zero_domains: tuple = (1,)
-    L_stand: float | None = None      # default: leg length of the first state seen
-    blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
-    grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
-    # ... unless the push is still under way: with the COM rising faster than ``push_rising`` the
-    # JUMPING outputs (held at the plan's end) stay up to ``push_grace`` past the end.  Measured,
-    # frontflip (motor speed scale 3, apex 1.3 m): the leg extension lagged the plan by 0.24 m at the
-    # knees' torque limit and the feet left the ground 0.1 s after the plan's end, rising at 2.3 m/s;
-    # STANDING had taken over and the flight ran without its outputs (the body turned backwards).
-    push_grace: float = 0.3
-    push_rising: float = 1.0          # m/s
-    max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
-    t1_fraction: float = 0.75
-    # s: the FLIGHT reference is sampled this far ahead of the time since the LIFT_OFF event, so the
-    # turn ends that much before the planned touch-down.  The simulator reports a lift-off 20 steps
-    # (10 ms) after its onset and the planner plans from the state then; a touch-down that comes early
-    # (flip D: the ground 0.1 m higher than planned, 18 ms early) otherwise meets a body still turning
-    # (4.5 rad/s, +348 deg, then +383 deg after it).  Measured offline (scripts/bench_landings.py, 15
-    # start times; D: --ground-offset 0.1 --apex 1.2; A: --distance 1.0 --apex 1.2 --seconds 20),
-    # landed backflips, frontflips, C, A, D: 0 s: 15, 15, 15, 7, 2; 0.01 s: 15, 15, 15, 10, 12;
-    # 0.02 s: D 6.  On 15 other start times A goes 8 -> 5 with 0.01 s (15 of 30 either way).
-    flight_lead: float = 0.01
-    # catch_decel: m/s^2, leg deceleration of the fallback landing (leg_catch); landing_moment: N*m, mean
-    # pitch moment it uses to remove H_pitch.  25 and 8 (were 15 and 12): with 15 / 12 the landings
-    # rebounded 0.3-0.8 s after touch-down and drifted off; measured offline (scripts/bench_landings.py,
-    # somersault robot), landed backflips / frontflips of 15: 11 / 5 -> 15 / 11, and on 15 other
-    # start times 13 / 3 -> 15 / 12; alone, decel 25: 12 / 8, moment 8: 15 / 7, moment 6: 14 / 8
-    catch_decel: float = 25.0
-    landing_moment: float = 8.0
-    # N*m: the removal moment from landing_late_after (s) into the landing or standing on, ramped in over
-    # moment_ramp (0: landing_moment throughout).  The landing's first seconds need the gentle 8 N*m;
-    # by then the robot stands still on both feet and takes more.  After flip A the flywheel holds
-    # ~90 kg*m^2/s: out ~8 s after touch-down with 16 from 2 s on, ~13.5 s with 8 throughout.
-    # Measured offline (scripts/bench_landings.py, 30 start times): the same 145 of 150 landed, from
-    # the same start times; landing_moment 12 / 16 throughout: 71 / 69 of the first 75 (against 72).
-    landing_moment_late: float = 16.0
-    landing_late_after: float = 2.0
-    # The own LANDING's H_pitch weight starts at landing_H_weight and rises to its ``gains`` value over
-    # landing_H_ramp (s, quintic).  A touch-down with forward speed is stopped by a backward ground
-    # force below the COM, whose moment turns the body forward unless the flywheel takes it: with the
-    # full weight from touch-down the QP held H_pitch to the removal profile instead and the COM ran
-    # on over the toes (flip A: 1.1 m/s, feet 0.14 m ahead of the COM; the COM ran 0.36 m, the
-    # flywheel then spun up to hold the body, it rebounded and fell).  With 0.1 the flywheel takes
-    # 35 -> 80 kg*m^2/s and the COM stops over the feet.  Measured offline (scripts/bench_landings.py,
-    # its 15 start times; A: --distance 1.0 --apex 1.2 --seconds 12; C: --platform 0.5 --apex 1.2),
-    # landed backflips, frontflips, A, C:
-    #   weight 1 (before):     15, 15, 0 of 5 (9 s), 5
-    #   0.1 over 1 s (default): 15, 15, 10, 15; on 15 other start times 15, 14, -, 15
-    #   0.2 / 0.05:            14 / 15, 15 / 13, 1 / 10, 9 / 10;  ramp 1.5 s: 15, 15, 8, 14
-    # Flip D (--ground-offset 0.1 --apex 1.2, with its 0.6 m forward distance): 12 of 15 (weight 1: 1),
-    # 11 of the 15 others.  (These rows were measured with tests/offline_flip.py anchoring the flight
-    # at the lift-off's onset, 10 ms before the event the graph reports.  With the graph's timing and
-    # flight_lead 0: weight 1 gave 15, 15, A 0 of 15 at 20 s, C 8, D 0; weight 0.1 15, 15, A 7, C 15,
-    # D 2; with flight_lead 0.01 (default) A 10, D 12.)
-    # Flip A then fell late (3-10 s after touch-down, while the flywheel's momentum was being removed)
-    # from 5 of its 15 start times: the simulator's feet crept on the ground (cassie_flip_sim
-    # robot_params.CONE); with that fixed 28 of 30 land.
-    landing_H_weight: float = 0.1
-    landing_H_ramp: float = 1.0
-    # kg*m^2/s: the own landing lasts until |H_pitch| is below this (and its profiles have ended).
-    # After flip A the flywheel holds ~80-90 kg*m^2/s; a landing ended by its clock with 56 left handed
-    # it to STANDING, and the robot fell (A: 10 -> 11 of 15 start times at 9 s of simulation)
-    landing_H_done: float = 2.0
-    L_min: float = 0.50               # m, shortest leg the fallback landing may use
-    # STANDING: once the COM is past the front or back of the feet on the ground (along their heading)
-    # the H_pitch weight falls linearly, to standing_H_edge_weight of its value standing_H_edge (m)
-    # beyond (0: off; see Controller._standing_H_weight).  Measured on the frontflip from 0.98 s (see
-    # there): edge weight 0.1: the COM came back over the feet in 0.3 s on 225 N*m of flywheel torque,
-    # the unloaded feet were thrown about and the robot fell; 0.3: at rest.  Falling already 3 cm
-    # inside the feet (instead of past them) took away H_pitch's damping from a robot standing near
-    # its heels with no momentum to remove (flip D from 2.1 s: shuffled, not at rest; lands with this)
-    standing_H_edge: float = 0.03
-    standing_H_edge_weight: float = 0.3
-    com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
-    k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
-    # FLIGHT with a planned pelvis pitch (``phi_pitch``): track it as an output of its own (value, rate
-    # and acceleration, the QP's full dynamics finding the flywheel torque) instead of eq.
-    # (momentumTrans)'s flywheel momentum.  Measured, backflip with leg motors 3x faster and a 1.3 m
-    # apex (0.54 s flight; tests/test_offline_flight.py): touch-down 0.12 rad past -2pi at -1.8 rad/s,
-    # against 0.21 rad short at -6.8 rad/s with eq. (momentumTrans), whose rate regulation misses what
-    # the legs' motion relative to the pelvis does to it.  Needs the FLIGHT torque smoothing (below).
-    flight_pitch_output: bool = True
-    # FLIGHT after T1: the foot placement (a world leg angle for the pelvis at its final pitch) is aimed
-    # through the measured pelvis pitch, i.e. the legs ride with the pelvis until it gets there.  Aimed
-    # at the world angle from T1 on, with the body still ~0.8 rad short, the legs swung ~50 deg relative
-    # to the pelvis in 0.1 s and threw it round (measured backflip: +1.6 rad over-rotation).
-    flight_legs_on_pelvis: bool = True
-    # FLIGHT of a somersault after T1: the leg angles' weight (gains' beta_leg weight otherwise).  The foot
-    # placement outranks the pelvis pitch (weight 10): with the flywheel saturated late in the flight, a
-    # weight of 10 let the QP swing the legs to help turn the pelvis, and the feet came down 15-20 cm off
-    # their place under the COM (docs/measurements.md).  Not in a hop (no turn; it rebounded with 100).
-    somersault_beta_weight: float = 100.0
-    # LANDING after a somersault: track the planner's landing re-solve (paper §III-C) or land with the
-    # controller's own profiles (leg catch, bounded momentum removal).  After a hop the re-solve is
-    # tracked (with the own profiles the FSLIP hop bounced: a 20 ms lift-off 0.14 s after touch-down).  Measured (tests/offline_flip.py, backflip,
-    # motor speed scale 3, apex 1.3 m): tracking the re-solve fell 0.26 s after touch-down (its momentum
-    # swings through zero, -20 -> +29 -> 0 kg*m^2/s, because the FSLIP flywheel torque also pushes the
-    # point mass), the controller's own landing stood up.
-    track_landing_reference: bool = False
-    catch_slack: float = 0.1          # m/s: the landing's leg catch re-anchors on the body's sink rate (_leg_catch)
-    moment_ramp: float = 0.3          # s over which the landing's momentum-removal moment ramps in
-    per_foot_contact: bool = True     # on the ground, a foot that has come off it loses its contact rows
-    foot_lift: float = 0.008          # m above the ground at which a foot counts as off it
-    foot_land: float = 0.004          # m above the ground at which it counts as back on it
-    foot_loaded_spring: float = 8.0   # N*m shin-spring torque above which a leg counts as loaded (on the ground)
-    swing_depth: float = 0.02         # m below the ground the swing foot is aimed at
-    gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
-    jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
-    standing_gains: dict = field(default_factory=lambda: dict(STANDING_GAINS))  # overrides in STANDING
-    # domain -> w of w ||u - u_prev||^2 in the QP.  JUMPING: without it the torques chatter against the
-    # leaf springs, the contact forces the QP predicts (rigid springs) run ahead of the real ones and the
-    # feet unload 0.1 s into the push; w = 10 gives the planned lift-off time for backflip, frontflip and
-    # hop from two start states (measured offline, tests/offline_flip.py), 3 does not, 100 lifts off late.
-    # FLIGHT: with the pelvis pitch output the torques chattered and rang the leaf springs (+-0.06 rad),
-    # the legs stretched 0.08 m and touched down nearly straight.  LANDING: 3 / 10 / 30 landed a backflip
-    # from 0 / 5 / 3 of 6 start times.
-    torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
-    # after a BODY_CONTACT (a fall) the motors only damp: u = -fall_damping * (motor velocity), within
-    # the limits; the flywheel is braked the same way.  Before, a fallen robot kept being balanced on
-    # its flywheel: measured in graph runs that fell, the flywheel reached 12 800-78 600 rpm and the
-    # pelvis spun on the ground
-    fall_damping: float = 5.0         # N*m*s/rad
-
-
-#: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
-#: own parameters (motor_speed_scale, flywheel_torque), the same in simulator, planner and controller
-ROBOT_FIELDS = ("motor_speed_scale", "flywheel_torque")
-_DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing")
-
-
-def config_overrides(text: str) -> dict:
-    """ControllerConfig overrides from a JSON object (the ``controller`` parameter of ``tsc_node``,
-    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` / ``standing_gains`` entries (name ->
-    [weight, kp, kd]) are merged into the defaults; domain-keyed dicts take domain numbers or names
-    ({"JUMPING": 0.2} or {"1": 0.2}).  Raises ValueError with the reason for anything else."""
-    import json
-    try:
-        raw = json.loads(text) if text and text.strip() else {}
-    except json.JSONDecodeError as e:
-        raise ValueError(f"controller overrides are not JSON: {e}") from None
-    if not isinstance(raw, dict):
-        raise ValueError("controller overrides must be a JSON object {field: value}")
-    base = ControllerConfig()
-    fields = set(ControllerConfig.__dataclass_fields__)
-    out = {}
-    for key, val in raw.items():
-        if key in ROBOT_FIELDS:
-            raise ValueError(f"{key!r} is a robot parameter: set it for the whole robot "
-                             f"(--{key.replace('_', '-')}), not for the controller alone")
-        if key not in fields:
-            raise ValueError(f"unknown controller setting {key!r}; known: {', '.join(sorted(fields - set(ROBOT_FIELDS)))}")
-        cur = getattr(base, key)
-        if key in ("gains", "jumping_gains", "standing_gains"):
-            if not isinstance(val, dict):
-                raise ValueError(f"{key} must be an object name -> [weight, kp, kd]")
-            merged = dict(cur)
-            for name, g in val.items():
-                if name not in DEFAULT_GAINS:
-                    raise ValueError(f"{key}: unknown output {name!r}; known: {', '.join(DEFAULT_GAINS)}")
-                if not (isinstance(g, (list, tuple)) and len(g) == 3
-                        and all(isinstance(x, (int, float)) and math.isfinite(x) and x >= 0 for x in g)):
-                    raise ValueError(f"{key}.{name} must be [weight, kp, kd], three numbers >= 0")
-                merged[name] = tuple(float(x) for x in g)
-            out[key] = merged
-        elif key in _DOMAIN_KEYED:
-            if not isinstance(val, dict):
-                raise ValueError(f"{key} must be an object domain -> number")
-            d = {}
-            for dk, dv in val.items():
-                try:
-                    dom = Domain[dk] if dk in Domain.__members__ else Domain(int(dk))
-                except (ValueError, KeyError):
-                    raise ValueError(f"{key}: {dk!r} is not a domain ({', '.join(Domain.__members__)} or 0-3)") from None
-                if not (isinstance(dv, (int, float)) and math.isfinite(dv) and dv >= 0):
-                    raise ValueError(f"{key}.{dk} must be a number >= 0")
-                d[int(dom)] = float(dv)
-            if key == "cop_margin_domains" and any(v >= 0.5 for v in d.values()):
-                raise ValueError("cop_margin_domains: a margin must be below 0.5 (of the foot length)")
-            out[key] = d
-        elif isinstance(cur, bool):
-            if not isinstance(val, bool):
-                raise ValueError(f"{key} must be true or false")
-            out[key] = val
-        elif isinstance(cur, (int, float)) or cur is None:
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-                raise ValueError(f"{key} must be a finite number")
-            out[key] = float(val)
-        elif isinstance(cur, str):
-            if not isinstance(val, str):
-                raise ValueError(f"{key} must be a string")
-            allowed = {"backend": BACKENDS, "solver": tuple(SOLVERS)}.get(key)
-            if allowed is not None and val not in allowed:
-                raise ValueError(f"{key} must be one of {', '.join(allowed)}, not {val!r}")
-            out[key] = val
-        else:
-            raise ValueError(f"{key!r} cannot be set from the command line")
-    return out
 
 
 def _mk(cls, name, gains, key=None, **kw):
@@ -794,19 +382,11 @@ class Controller:
         the feet on the ground (along their heading); past its front or back, falling linearly to
         ``standing_H_edge_weight`` of it at ``standing_H_edge`` beyond and further out.
 
-        Measured (tests/offline_flip.py, frontflip from 0.98 s, somersault robot): after a rebound in
-        the landing (whose hop FLIGHT plan made the controller track the planner's re-solve of the
-        rebound's touch-down), STANDING began at the re-solve's end in mid-air, with the COM 3-8 cm
-        ahead of the toes moving forward at 0.25 m/s.
-        With the COM off the feet the ground cannot give the moment that brings it back: the QP held
-        the whole load on the toes (heels at f_min) and took that moment from the flywheel.  The H_pitch
-        output (weight 1) asks for the opposite moment (the momentum removal, -8 ... -16 N*m), so each
-        m/s^2 of COM acceleration back over the feet (moment m h ~ 20-30 N*m, flywheel) cost the QP
-        ~5-10x more in H_pitch error than it saved in COM error (weight 100): the COM crept back at
-        0.05-0.1 m/s (0.185 m off at 5.4 s, still 2 cm past the toe-load CoP at 7.5 s), the flywheel took
-        the toppling moment m g d all that time (H_pitch 5 -> 112 kg*m^2/s, 11 200 rpm) and the robot
-        was not at rest at 10 s.  Back over the feet, the removal needs no COM error and the weight is
-        back."""
+        Why: with the COM off the feet the ground cannot give the moment that brings it back, and the
+        H_pitch output's momentum removal asks for the opposite moment; at full weight it costs the QP
+        more than the COM error saves, so the COM stays off the feet and the flywheel takes the
+        toppling moment.  Back over the feet, the removal needs no COM error and the weight is back.
+        The measurements: docs/tuning.md, ``standing_H_edge``."""
         o = self.standing_outputs[0]
         w0 = self._standing_H_w0
         cfg = self.cfg
@@ -868,7 +448,7 @@ class Controller:
         outs = outs + self.o_Lleg
         des = des + [d("L", f["L"][k]) for k in range(2)]
         if tau < T1:
-            if self._somersault and self.o_axis.weight > 0.0:          # see DEFAULT_GAINS["axis"]
+            if self._somersault and self.o_axis.weight > 0.0:          # see config.DEFAULT_GAINS["axis"]
                 outs.append(self.o_axis)
                 des.append(Desired(self._z2, self._z2, self._z2))
             outs.append(self.o_j_pre)

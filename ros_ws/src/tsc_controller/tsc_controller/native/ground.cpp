@@ -31,7 +31,7 @@ namespace
   inline double py_max(double a, double b) { return b > a ? b : a; }
   inline double py_min(double a, double b) { return b < a ? b : a; }
 
-  /// domains.quintic's coefficients at time s over T (T2 = T ** 2 as Python computes it).
+  /// profiles.quintic's coefficients at time s over T (T2 = T ** 2 as Python computes it).
   struct Quintic
   {
     bool done = false;               // T <= 0 or s >= T: the end value, zero rates
