@@ -341,7 +341,7 @@ def test_compute_without_details_gives_the_same_torques():
 
 def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     """STANDING's H_pitch weight is its own while the COM is over the feet and falls to
-    standing_H_edge_weight of it once the COM is well past the toes (Controller._standing_H_weight;
+    standing_H_edge_weight of it once the COM is well past the toes (Standing.H_weight;
     frontflip from 0.98 s offline: kept at 1, the flywheel held the COM ahead of the toes while
     H_pitch grew to 112 kg*m^2/s, and the robot was not at rest after 10 s).  On the Python targets,
     whose foot anchors are attributes to move; the compiled ones give the same weights to the bit
@@ -350,13 +350,13 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=3.0, flywheel_torque=260.0,
                      compiled_targets=False)
     _run(ctl, sim, 0.05)
-    o, w0 = ctl.standing_outputs[0], ctl._standing_H_w0
+    o, w0 = ctl.standing.outputs[0], ctl.standing.H_w0
     assert ctl.domain == Domain.STANDING and o.weight == w0
     x = float(ctl.dyn.com[0])
-    anchors = [a.copy() for a in ctl._foot_anchor]
+    anchors = [a.copy() for a in ctl.ground.foot_anchor]
     for dx, f in ((0.0, 1.0), (x - 0.10 - max(a[0] for a in anchors), ctl.cfg.standing_H_edge_weight)):
         # the feet moved by dx: with the COM 0.1 m past the toes the weight is the edge weight's
-        ctl._foot_anchor = [a + np.array([dx, 0, 0, dx, 0, 0]) for a in anchors]
-        ctl._standing_H_weight()
+        ctl.ground.foot_anchor = [a + np.array([dx, 0, 0, dx, 0, 0]) for a in anchors]
+        ctl.standing.H_weight()
         assert o.weight == pytest.approx(w0 * f)
-    ctl._foot_anchor = anchors
+    ctl.ground.foot_anchor = anchors

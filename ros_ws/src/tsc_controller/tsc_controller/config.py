@@ -108,7 +108,7 @@ class ControllerConfig:
     # rebound (docs/tuning.md, catch_decel and landing_moment)
     catch_decel: float = 25.0
     # N*m, the pitch moment the own landing uses to remove H_pitch, dH/dt = -clip(kp H, +-M) (see
-    # Controller._momentum_removal): what the feet can give in the landing's first seconds
+    # GroundTargets._momentum_removal): what the feet can give in the landing's first seconds
     landing_moment: float = 8.0
     # N*m: the removal moment from landing_late_after (s) into the landing or standing on, ramped in over
     # moment_ramp (0: landing_moment throughout): by then the robot stands still on both feet and takes
@@ -126,7 +126,7 @@ class ControllerConfig:
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     # STANDING: once the COM is past the front or back of the feet on the ground (along their heading)
     # the H_pitch weight falls linearly, to standing_H_edge_weight of its value standing_H_edge (m)
-    # beyond (0: off; Controller._standing_H_weight): the QP then brings the COM back over the feet
+    # beyond (0: off; Standing.H_weight): the QP then brings the COM back over the feet
     # instead of holding the momentum removal (docs/tuning.md)
     standing_H_edge: float = 0.03
     standing_H_edge_weight: float = 0.3
@@ -150,7 +150,9 @@ class ControllerConfig:
     # swings through zero (its flywheel torque also pushes the point mass) and tracking it fell.  After
     # a hop the re-solve is tracked either way (docs/tuning.md)
     track_landing_reference: bool = False
-    catch_slack: float = 0.1          # m/s: the landing's leg catch re-anchors on the body's sink rate (_leg_catch)
+    # m/s: the landing's leg catch re-anchors on the body's sink rate (GroundTargets._leg_catch) when the
+    # profile shortens the leg faster than the body sinks by more than this
+    catch_slack: float = 0.1
     moment_ramp: float = 0.3          # s over which the landing's momentum-removal moment ramps in
     per_foot_contact: bool = True     # on the ground, a foot that has come off it loses its contact rows
     foot_lift: float = 0.008          # m above the ground at which a foot counts as off it
