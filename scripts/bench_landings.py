@@ -41,7 +41,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     from cassie_flip_sim.model import Scenario, export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller import Controller
-    from tsc_controller.domains import config_overrides
+    from tsc_controller.config import config_overrides
     scenario = (Scenario.platform(platform) if platform else
                 Scenario.raised_landing(ground_offset) if ground_offset else Scenario.flat())
     sim = Simulator(scenario=scenario, motor_speed_scale=scale, flywheel_torque=torque)
@@ -115,7 +115,7 @@ def main() -> int:
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
-    from tsc_controller.domains import config_overrides
+    from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
