@@ -2,7 +2,8 @@
 """Benchmark of the cassie_flip_sim simulator: steps per second, printed as a table.
 
 Part 1 (bare steps): raw ``mujoco.mj_step`` vs ``Simulator.step`` (motor-limit clipping +
-foot-force readout + contact detector), standing on the ground and in flight.
+foot-force readout + contact detector; with ``wrench=True`` the feet's wrenches too), standing on the
+ground and in flight.
 Part 2 (lockstep node round trip): :func:`bench_lockstep`, sim_node against echo_controller, each
 its own process in a domain of its own (claimed like `flip` does; $FLIP_ROS_DOMAIN_ID if set), on
 two CPUs or both pinned to one.
@@ -47,6 +48,9 @@ def bench_bare(steps: int, flywheel: str = "I") -> list[tuple[str, float]]:
     rows.append(("mujoco.mj_step, standing (no limits)", _rate(lambda: mujoco.mj_step(sim.model, sim.data), steps)))
     sim.reset()
     rows.append(("Simulator.step, standing, u = 0", _rate(lambda: sim.step(u), steps)))
+    sim.reset()
+    rows.append(("Simulator.step, standing, u = 0, the feet's wrenches too (foot_wrench)",
+                 _rate(lambda: sim.step(u, wrench=True), steps)))
     sim.reset()
     rows.append(("Simulator.step, standing, random u (clipped)", _rate(lambda: sim.step(u_rand), steps)))
     q = sim.standing_qpos.copy()

@@ -163,7 +163,7 @@ def main():
     T.SOLVERS[a.solver].solve = orig
 
     print(f"TSC tick, standing closed loop, {n} ticks at 2 kHz, solver {a.solver}, backend {ctl.dyn.backend}, "
-          f"targets {'compiled' if ctl._ground is not None else 'Python'} "
+          f"targets {'compiled' if ctl.ground.compiled is not None else 'Python'} "
           f"(BLAS threads = {os.environ.get('OPENBLAS_NUM_THREADS')})")
     stages(parts, tick, a.backend)
     row("(state conversion, not in total)", conv)

@@ -53,6 +53,12 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
                                                                       "planner": 0, "tsc": 0}
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
+    # the hop's landing tracks the planner's re-solve at the (last) touch-down: measured (from the bag)
+    # against planned leg length and COM x over the landing (a landing off the plan: L off by 0.1-0.3 m)
+    land = s["tracking"]["landing"]
+    assert land["t0"] == pytest.approx(td[-1], abs=0.01) and land["t1"] > land["t0"] + 0.5
+    assert land["L"]["rms"] < 0.08 and land["x_com"]["rms"] < 0.02 and land["H_pitch"]["rms"] < 3.0, land
+    assert s["landing_peak_flywheel_rpm"] is not None and s["flight_peak_flywheel_rpm"] is not None
     # the run ends where the tool planned it (touch-down + settle), not seconds later
     run = json.loads((out / "run.json").read_text())
     end = run["end_sim_time"]
@@ -61,6 +67,48 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert run["request_sim_time"] >= 0.5
     assert end == pytest.approx(run["touch_down_sim_time"] + 5.0, abs=1e-3)
     assert run["touch_down_sim_time"] == pytest.approx(td[0], abs=0.01)
+    assert_plans_and_forces_are_recorded(out, end)
+
+
+def assert_plans_and_forces_are_recorded(out, end):
+    """What a viewer of the run sees, from its bag: one COM path (/fslip/com_path, world frame) per
+    reference, starting at the reference's start time where the robot's COM was (the standing COM over
+    x_start for the jump, the measured COM at a lift-off for a flight); the foot targets of the flip
+    (/fslip/targets: a DELETEALL, then the stance feet and the touch-downs, the landing stance foot
+    where the feet came down); and fig6's normal force: the feet's wrenches carry m·g standing at the
+    end and push off harder than that in the jump, against the FSLIP's planned force."""
+    from flip_tools.bag import NOT_SUMMARIZED, load_bag
+    from flip_tools.measured import foot_wrenches_world, robot_mass
+    from flip_tools.plots import planned_normal_force
+    bag = load_bag(out / "bag", exclude=NOT_SUMMARIZED)
+    refs, ce = bag["/fslip/reference"]["refs"], bag["/contact_events"]
+    paths = bag["/fslip/com_path"]["msgs"]
+    assert len(paths) == len(refs) and bag.count("/fslip/targets") == len(refs)
+    stamp = lambda s: s.sec + 1e-9 * s.nanosec
+    lift_offs = iter(ce["com_pos"][ce["event"] == 0])
+    for ref, path in zip(refs, paths):
+        assert path.header.frame_id == "world" and len(path.poses) > 1
+        assert stamp(path.poses[0].header.stamp) == pytest.approx(ref["start_time"], abs=1e-6)
+        p0 = path.poses[0].pose.position
+        if ref["domain"] == 1:
+            assert p0.x == pytest.approx(ref["parameters"]["x_start"], abs=2e-3) and 0.9 < p0.z < 1.0
+        if ref["domain"] == 2:
+            np.testing.assert_allclose([p0.x, p0.y, p0.z], next(lift_offs))
+    markers = bag["/fslip/targets"]["msgs"][-1].markers
+    assert markers[0].action == 3                                          # DELETEALL
+    ns = {m.ns: m for m in markers[1:]}
+    assert {"jumping/stance", "jumping/touchdown", "flight/touchdown", "landing/stance"} <= set(ns), set(ns)
+    assert all(m.header.frame_id == "world" and m.id == refs[-1]["plan_id"] for m in markers[1:])
+    landed_at = ce["support_center"][ce["event"] == 1][-1]
+    assert ns["landing/stance"].pose.position.x == pytest.approx(landed_at[0], abs=0.03)
+    weight = robot_mass(bag) * 9.81
+    w = foot_wrenches_world(bag)
+    fz, t = w["force"][:, :, 2].sum(axis=1), w["t"]
+    np.testing.assert_allclose(fz[t > end - 1.0], weight, rtol=0.02)      # standing after the landing
+    jump = (t >= refs[0]["start_time"]) & (t < ce["t"][ce["event"] == 0][0])
+    assert fz[jump].max() > 1.5 * weight                                   # the push-off
+    planned = planned_normal_force(bag)
+    assert planned and planned[0][0] == 1 and planned[0][2][0] == pytest.approx(weight, rel=0.01)
 
 
 def test_backflip_turns_once_and_touches_down_upright_through_the_graph(tmp_path):

@@ -85,3 +85,37 @@ def test_realtime_stand_runs_on_the_wall_clock_and_counts_late_commands(tmp_path
     assert json.loads((out / "run.json").read_text())["lockstep_sched"] == "other"
     assert "running: mode=realtime" in log and "SCHED_OTHER" in log and "SCHED_BATCH" not in log
     assert "held at step 0 for" in log and "released: on the wall clock" in r.stdout + r.stderr
+
+
+def test_stand_records_each_foots_wrench_on_the_clock_grid_carrying_the_weight(tmp_path):
+    """`flip stand` through the real nodes: /left_foot/wrench and /right_foot/wrench
+    (geometry_msgs/WrenchStamped in the foot links' frames) are in the bag for every 10th step
+    (200 Hz of sim time, the steps of /clock: none lost), stamped with the step's sim time; in world
+    axes (the foot links' poses from the bag's URDF and state, as /tf gives them) the two forces sum
+    to the robot's weight, m·g with m from the model (~420 N), once it has settled."""
+    from cassie_flip_sim.foot_wrench import FOOT_LINKS, WRENCH_TOPICS
+    from cassie_flip_sim.simulator import Simulator
+    from flip_tools.bag import NOT_SUMMARIZED, load_bag
+    from flip_tools.measured import foot_wrenches_world, robot_mass
+    out = tmp_path / "stand"
+    r = subprocess.run([sys.executable, str(FLIP), "stand", "--duration", "2.5", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    bag = load_bag(out / "bag", exclude=NOT_SUMMARIZED)
+    steps = np.arange(0, 5000, 10)
+    for topic, link in zip(WRENCH_TOPICS, FOOT_LINKS):
+        assert bag.topics[topic]["type"] == "geometry_msgs/msg/WrenchStamped"
+        w = bag[topic]
+        assert w["frame_id"] == link
+        assert np.array_equal(np.round(w["t"] / 0.0005), steps), topic
+        assert np.allclose(w["t"] / 0.0005, np.round(w["t"] / 0.0005), atol=1e-6)
+    assert "foot wrenches every 10 steps" in (out / "logs" / "sim.log").read_text()
+    world = foot_wrenches_world(bag)
+    assert world is not None and np.array_equal(np.round(world["t"] / 0.0005), steps)
+    mass = Simulator().total_mass()
+    assert robot_mass(bag) == mass
+    fz = world["force"][:, :, 2]
+    late = world["t"] >= 1.5
+    np.testing.assert_allclose(fz[late].sum(axis=1), mass * 9.81, rtol=0.02)
+    assert np.all(fz[late] > 0.4 * mass * 9.81)                        # on both feet
+    assert np.abs(world["force"][late, :, :2].sum(axis=1)).max() < 0.02 * mass * 9.81

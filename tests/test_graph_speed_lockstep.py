@@ -268,9 +268,11 @@ def test_compiled_sim_loop_records_what_the_python_loop_records(tmp_path):
     (stand_ins/zero_tick_tsc_node.py): the robot falls, so the compiled loop hands back to Python at
     lift-offs, touch-downs and body contacts (its C++ contact detector and body-contact test) as well
     as every 200 steps.  Both record the same run to the bit: every step's /odom, /joint_states and
-    /motor_command, /clock, and the contact events (steps, kinds, the states they carry)."""
+    /motor_command, /clock, the contact events (steps, kinds, the states they carry), and the feet's
+    wrenches every 10th step (the compiled loop publishes them from C++)."""
+    from cassie_flip_sim.foot_wrench import WRENCH_TOPICS
     zero_tick = f"tsc={sys.executable} {FLIP.parent / 'stand_ins' / 'zero_tick_tsc_node.py'}"
-    topics = ("/clock", "/joint_states", "/odom", "/motor_command", "/contact_events")
+    topics = ("/clock", "/joint_states", "/odom", "/motor_command", "/contact_events", *WRENCH_TOPICS)
     n = 3000
     runs = {loop: stand(tmp_path, loop, duration=n * 0.0005, ok=(0, 1), topics=topics,
                         extra=["--exe", zero_tick, "--sim-loop", loop, "--cpu-dma-latency", "off"])
@@ -289,6 +291,11 @@ def test_compiled_sim_loop_records_what_the_python_loop_records(tmp_path):
         for k in keys:
             np.testing.assert_array_equal(a[topic][k][ia[ja]], b[topic][k][ib[jb]], err_msg=f"{topic} {k}")
     np.testing.assert_array_equal(a["/clock"]["sim_t"], b["/clock"]["sim_t"])
+    for topic in WRENCH_TOPICS:
+        assert np.array_equal(np.round(a[topic]["t"] / 0.0005), np.arange(0, n, 10)), topic
+        for k in ("t", "force", "torque"):
+            np.testing.assert_array_equal(a[topic][k], b[topic][k], err_msg=f"{topic} {k}")
+    assert np.abs(a[WRENCH_TOPICS[0]]["force"]).max() > 10.0           # the feet were loaded
     ea, eb = a["/contact_events"], b["/contact_events"]
     assert {0, 1, 2} <= set(ea["event"]), ea["event"]    # lift-off, touch-down, body contact
     for k in ("t", "step", "event", "domain", "frame_id", "pelvis_pos", "pelvis_quat", "com_pos", "com_vel",

@@ -61,7 +61,7 @@ def _nudged_backflip(axis_weight=None):
     world x over 20 ms) at the lift-off: the transverse disturbance the flight has to hold against."""
     sim, ctl = robot()
     if axis_weight is not None:
-        ctl.o_axis.weight = axis_weight
+        ctl.flight.o_axis.weight = axis_weight
     pelvis = sim.model.body("pelvis").id
     st = {"lo": None}
 

@@ -20,11 +20,32 @@ def test_sampled_reference_interpolates_and_clamps():
     assert s["a"] == pytest.approx((0.5, 1.0, 1.5)) and s["b"] == pytest.approx((1.5, 3.0, 4.5))
     assert r.sample(-1.0)["b"][0] == 1.0 and r.sample(9.0)["b"][0] == 4.0
     msg = SimpleNamespace(domain=1, t=list(t), output_names=["a", "b"], value=list(val.ravel()),
-                          d_value=[], dd_value=[], start_time=SimpleNamespace(sec=5, nanosec=500_000_000),
+                          d_value=[0.0] * 6, dd_value=[0.0] * 6,
+                          start_time=SimpleNamespace(sec=5, nanosec=500_000_000),
                           plan_id=3, parameter_names=["T1"], parameter_values=[0.2])
     m = SampledReference.from_msg(msg)
     assert m.start_time == 5.5 and m.plan_id == 3 and m.parameters == {"T1": 0.2}
     assert m.sample(0.1)["b"] == (2.0, 0.0, 0.0)
+
+
+def test_reference_from_msg_reads_it_as_tsc_node_does():
+    """SampledReference.from_msg is tsc_node's reading of a /fslip/reference: the start time is the
+    stamp's integer nanoseconds times 1e-9, as the tick's time is formed from a state's stamp (not
+    sec + 1e-9 nanosec, which differs in the last bit for this stamp), and samples that are not
+    len(t) x len(output_names), an empty derivative included, are refused (the node logs and ignores
+    the message)."""
+    def msg(**kw):
+        m = dict(domain=1, t=[0.0, 0.1], output_names=["L"], value=[0.8, 0.9], d_value=[0.0, 1.0],
+                 dd_value=[0.0, 0.0], start_time=SimpleNamespace(sec=1, nanosec=1_000_000), plan_id=1,
+                 parameter_names=[], parameter_values=[])
+        m.update(kw)
+        return SimpleNamespace(**m)
+    ref = SampledReference.from_msg(msg())
+    assert ref.start_time == 1_001_000_000 * 1e-9 and ref.start_time != 1 + 1e-9 * 1_000_000
+    assert ref.sample(0.05)["L"] == pytest.approx((0.85, 0.5, 0.0))
+    for bad in (dict(d_value=[]), dict(dd_value=[0.0]), dict(value=[0.8, 0.9, 1.0]), dict(domain=7)):
+        with pytest.raises(ValueError):
+            SampledReference.from_msg(msg(**bad))
 
 
 def test_state_converter_matches_pinocchio_map():
@@ -139,7 +160,7 @@ def test_controller_overrides_from_json():
     """``config_overrides`` (tsc_node's ``controller`` parameter, ``flip run --controller``): gains are
     merged into the defaults, domains given by name or number, and anything else is refused with
     the reason, before a controller is built."""
-    from tsc_controller.domains import DEFAULT_GAINS, JUMPING_GAINS, config_overrides
+    from tsc_controller.config import DEFAULT_GAINS, JUMPING_GAINS, config_overrides
     o = config_overrides('{"cop_margin_domains": {"JUMPING": 0.2, "3": 0.1}, "jumping_gains": {"H_pitch": [3, 10, 0]},'
                          ' "landing_moment": 8, "per_foot_contact": false}')
     assert o["cop_margin_domains"] == {int(Domain.JUMPING): 0.2, int(Domain.LANDING): 0.1}
@@ -285,7 +306,7 @@ def test_quintic_of_short_vectors_equals_its_array_form():
     """quintic's element-by-element path (1-D float vectors, the outputs of a tick) gives the same
     numbers, to the bit, as its numpy form (which a 2-D input takes), with and without a start
     velocity, before, inside and after the blend."""
-    from tsc_controller.domains import quintic
+    from tsc_controller.profiles import quintic
     rng = np.random.default_rng(3)
     for n in (1, 2, 3):
         for _ in range(300):
@@ -320,7 +341,7 @@ def test_compute_without_details_gives_the_same_torques():
 
 def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     """STANDING's H_pitch weight is its own while the COM is over the feet and falls to
-    standing_H_edge_weight of it once the COM is well past the toes (Controller._standing_H_weight;
+    standing_H_edge_weight of it once the COM is well past the toes (Standing.H_weight;
     frontflip from 0.98 s offline: kept at 1, the flywheel held the COM ahead of the toes while
     H_pitch grew to 112 kg*m^2/s, and the robot was not at rest after 10 s).  On the Python targets,
     whose foot anchors are attributes to move; the compiled ones give the same weights to the bit
@@ -329,13 +350,13 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=3.0, flywheel_torque=260.0,
                      compiled_targets=False)
     _run(ctl, sim, 0.05)
-    o, w0 = ctl.standing_outputs[0], ctl._standing_H_w0
+    o, w0 = ctl.standing.outputs[0], ctl.standing.H_w0
     assert ctl.domain == Domain.STANDING and o.weight == w0
     x = float(ctl.dyn.com[0])
-    anchors = [a.copy() for a in ctl._foot_anchor]
+    anchors = [a.copy() for a in ctl.ground.foot_anchor]
     for dx, f in ((0.0, 1.0), (x - 0.10 - max(a[0] for a in anchors), ctl.cfg.standing_H_edge_weight)):
         # the feet moved by dx: with the COM 0.1 m past the toes the weight is the edge weight's
-        ctl._foot_anchor = [a + np.array([dx, 0, 0, dx, 0, 0]) for a in anchors]
-        ctl._standing_H_weight()
+        ctl.ground.foot_anchor = [a + np.array([dx, 0, 0, dx, 0, 0]) for a in anchors]
+        ctl.standing.H_weight()
         assert o.weight == pytest.approx(w0 * f)
-    ctl._foot_anchor = anchors
+    ctl.ground.foot_anchor = anchors

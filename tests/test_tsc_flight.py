@@ -16,7 +16,7 @@ from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from launched_flip import flight_reference, launch
 from tsc_controller import Controller, Domain, StateConverter
-from tsc_controller.domains import leg_catch
+from tsc_controller.profiles import leg_catch
 
 T_FLIGHT = 0.9
 
@@ -59,7 +59,7 @@ def test_flight_conserves_momentum_and_stores_it_in_the_flywheel(flight):
     H = r["H"][:-2]                                              # the last step is the impact
     assert np.ptp(H) < 0.01 * abs(H[0])                           # no external moment in the air
     # at touch-down the body has stopped turning: the flywheel holds most of the momentum
-    I_fw = r["ctl"].o_Hfw._I
+    I_fw = r["ctl"].flight.o_Hfw._I
     assert sign * r["fw"][-1] * I_fw > 0.6 * abs(H[0])
     assert np.max(np.abs(r["fw"])) < 400.0                        # rad/s: a physical flywheel speed
 
@@ -118,7 +118,7 @@ def test_flight_reference_is_sampled_flight_lead_ahead():
         ctl.dyn.update(q, v)
         ctl._update_pitch()
         t = 0.2
-        outs, des = ctl._flight_task(t)
+        _, outs, des = ctl._task(t)
         k = [o.name for o in outs].index("pitch")
         want = ref.sample(t + lead)["phi_pitch"]
         assert des[k].value[0] == pytest.approx(want[0]) and des[k].d_value[0] == pytest.approx(want[1])

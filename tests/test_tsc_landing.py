@@ -21,7 +21,7 @@ def run_flip(sign, T, t_end=6.0, axis_output=True, **config):
     z_stand = float(sim.standing_qpos[2])
     ctl = Controller(export_mjcf(), **config)
     if not axis_output:
-        ctl.o_axis.weight = 0.0
+        ctl.flight.o_axis.weight = 0.0
     sc = StateConverter(ctl.dyn)
     ctl.compute(*sc.from_simulator(sim), 0.0)      # it has seen the robot standing (its standing leg length)
     w0 = launch(sim, sign, T, 0.1)
@@ -36,7 +36,7 @@ def run_flip(sign, T, t_end=6.0, axis_output=True, **config):
         q, v = sc.from_simulator(sim)
         u, _ = ctl.compute(q, v, sim.time)
         # (time, domain, H_pitch weight of the own landing, centroidal pitch momentum)
-        trace.append((sim.time, int(ctl.domain), ctl.o_H_land.weight, sim.centroidal_pitch_momentum()))
+        trace.append((sim.time, int(ctl.domain), ctl.landing.o_H.weight, sim.centroidal_pitch_momentum()))
         sim.step(u)
         if k % 20 == 0 and sim.body_contacts():
             fell = sim.time

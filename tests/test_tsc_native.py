@@ -143,8 +143,9 @@ def test_controller_torques_match(mjcf):
 
 def _all_outputs(ctl):
     """Every output object of a controller (each domain's)."""
-    outs = [*ctl.ground_outputs, *ctl.jumping_outputs, ctl.o_Hfw, ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe,
-            ctl.o_j_pre, ctl.o_j_post, *ctl.o_swing, ctl.o_axis]
+    f = ctl.flight
+    outs = [*ctl.ground.outputs, *ctl.jumping.outputs, f.o_Hfw, f.o_pitch, *f.o_Lleg, *f.o_beta, *f.o_toe,
+            f.o_j_pre, f.o_j_post, *ctl.ground.o_swing, f.o_axis]
     return outs
 
 
@@ -184,9 +185,10 @@ def test_qp_terms_match(mjcf, monkeypatch):
     dn, dp = Dynamics(mjcf), Dynamics(mjcf, backend="python")
     tn, tp = TSC(dn, cop_margin=0.1), TSC(dp, cop_margin=0.1)
     ctl = Controller(mjcf)
-    lists = [ctl.ground_outputs, ctl.jumping_outputs + [ctl.o_swing[0]],
-             [ctl.o_Hfw, *ctl.o_Lleg, ctl.o_j_pre], [ctl.o_pitch, *ctl.o_Lleg, ctl.o_axis, ctl.o_j_pre],
-             [ctl.o_pitch, *ctl.o_Lleg, *ctl.o_beta, *ctl.o_toe, ctl.o_j_post]]
+    f = ctl.flight
+    lists = [ctl.ground.outputs, ctl.jumping.outputs + [ctl.ground.o_swing[0]],
+             [f.o_Hfw, *f.o_Lleg, f.o_j_pre], [f.o_pitch, *f.o_Lleg, f.o_axis, f.o_j_pre],
+             [f.o_pitch, *f.o_Lleg, *f.o_beta, *f.o_toe, f.o_j_post]]
     seen = []
     orig = T.SOLVERS["daqp"].solve
 
@@ -283,16 +285,16 @@ class _Twin:
         ua, info = self.a.compute(q, v, t, details)
         ub, _ = self.b.compute(q, v, t, details)
         assert ua.tobytes() == ub.tobytes(), f"t={t}: compiled and Python targets differ by {ua - ub}"
-        wa, wb = self.a.standing_outputs[0].weight, self.b.standing_outputs[0].weight
+        wa, wb = self.a.standing.outputs[0].weight, self.b.standing.outputs[0].weight
         assert wa == wb, f"t={t}: STANDING H_pitch weights {wa} (compiled), {wb}"
         self.ticks += 1
         b = self.b
-        if wb < b._standing_H_w0:
+        if wb < b.standing.H_w0:
             self.seen.add("COM past the feet")
         self.seen.add(("domain", int(b.domain)))
-        if not all(b.feet_contact):
+        if not all(b.ground.feet_contact):
             self.seen.add("one foot or none")
-        if b._stand is not None and "tL" in b._stand:
+        if b.ground.stand is not None and "tL" in b.ground.stand:
             self.seen.add("leg catch re-anchored")
         return ua, info
 
@@ -323,7 +325,7 @@ def test_compiled_targets_equal_python_targets(flip):
     # LANDING these runs no longer re-anchor the catch or lift a foot, and the branches go untested
     cfg = dict(f_min_domains={})
     twin = _Twin(Controller(mj, **robot, **cfg), Controller(mj, compiled_targets=False, **robot, **cfg))
-    assert twin.a._ground is not None and twin.b._ground is None
+    assert twin.a.ground.compiled is not None and twin.b.ground.compiled is None
     # the jump anchored at the initial COM (an input here): the run whose landing re-anchors the catch
     r = of.run("frontflip", seconds=seconds, start=start, sim=sim, controller=twin, x_start=float(sim.com_position()[0]),
                **robot, **request)

@@ -15,7 +15,8 @@ def ctl():
 
 
 def _outputs(c):
-    return ([c.o_H, c.o_L, c.o_com, c.o_pel, c.o_Hfw, c.o_j_pre, c.o_j_post, c.o_axis] + c.o_Lleg + c.o_beta + c.o_toe)
+    f = c.flight
+    return c.ground.outputs + [f.o_Hfw, f.o_j_pre, f.o_j_post, f.o_axis] + f.o_Lleg + f.o_beta + f.o_toe
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -58,13 +59,13 @@ def test_momentum_outputs_match_definitions(ctl):
     mujoco.mj_forward(sim.model, sim.data)
     q, v = StateConverter(ctl.dyn).from_simulator(sim)
     ctl.dyn.update(q, v)
-    H = ctl.o_H.evaluate(ctl.dyn)[0][0]
+    H = ctl.ground.o_H.evaluate(ctl.dyn)[0][0]
     assert H == pytest.approx(sim.centroidal_pitch_momentum(), rel=1e-9, abs=1e-9)
     fw = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "flywheel")
     w = np.zeros(6)
     mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, fw, w, 0)   # world frame
     I_axis = sim.model.body_inertia[fw][1]
-    assert ctl.o_Hfw.evaluate(ctl.dyn)[0][0] == pytest.approx(I_axis * w[1], rel=1e-9, abs=1e-9)
+    assert ctl.flight.o_Hfw.evaluate(ctl.dyn)[0][0] == pytest.approx(I_axis * w[1], rel=1e-9, abs=1e-9)
 
 
 def test_foot_pitch_is_the_foot_line_angle_with_a_gradient_at_vertical(ctl):
@@ -75,7 +76,7 @@ def test_foot_pitch_is_the_foot_line_angle_with_a_gradient_at_vertical(ctl):
     from tsc_controller import StateConverter
     sim = Simulator()
     q, v = StateConverter(ctl.dyn).from_simulator(sim)
-    dyn, o = ctl.dyn, ctl.o_toe[0]
+    dyn, o = ctl.dyn, ctl.flight.o_toe[0]
     dyn.update(q, v)
     y0, J0 = o.evaluate(dyn)[:2]
     assert abs(float(y0[0])) < np.radians(3)

@@ -20,7 +20,7 @@ def controllers():
 def _random_task(ctl, rng):
     """Standing outputs with random desired offsets (so the QP is pushed against its bounds)."""
     dyn = ctl.dyn
-    outs = ctl.ground_outputs
+    outs = ctl.ground.outputs
     des = []
     for o in outs:
         y = o.evaluate(dyn)[0]
@@ -97,7 +97,7 @@ def test_flight_qp_respects_torque_bounds(controllers):
         q, v = random_state(dyn, rng, False)
         dyn.update(q, v)
         lb, ub = torque_bounds(v[dyn.motor_v])
-        outs = [ctl.o_Hfw] + ctl.o_Lleg + [ctl.o_j_pre]
+        outs = [ctl.flight.o_Hfw] + ctl.flight.o_Lleg + [ctl.flight.o_j_pre]
         des = [Desired(o.evaluate(dyn)[0] + rng.normal(0, 0.5, o.dim)) for o in outs]
         res = ctl.tsc.solve(outs, des, False, lb, ub)
         assert res.status == "solved"
@@ -158,7 +158,7 @@ def test_a_weight_changed_between_ticks_is_used(controllers):
     """An output's weight may change from tick to tick (the own landing's H_pitch weight rises after
     touch-down): the cached task must solve with the new weight, i.e. give the torques of a controller
     built with that weight, and not those of the weight it first saw."""
-    from tsc_controller.domains import DEFAULT_GAINS
+    from tsc_controller.config import DEFAULT_GAINS
     ctl = controllers["daqp"]
     light = Controller(export_mjcf(), solver="daqp", gains=dict(DEFAULT_GAINS, H_pitch=(0.05, 10.0, 0.0)))
     rng = np.random.default_rng(5)
@@ -170,14 +170,14 @@ def test_a_weight_changed_between_ticks_is_used(controllers):
             c.dyn.update(q, v)
         lb, ub = ctl.limits.bounds(v[ctl.dyn.motor_v])
         outs, des = _random_task(ctl, rng)
-        w0 = ctl.o_H.weight
+        w0 = ctl.ground.o_H.weight
         u_default = ctl.tsc.solve(outs, des, True, lb, ub).u        # the task is cached with weight w0
         try:
-            ctl.o_H.weight = 0.05
+            ctl.ground.o_H.weight = 0.05
             u_changed = ctl.tsc.solve(outs, des, True, lb, ub).u
         finally:
-            ctl.o_H.weight = w0
-        u_light = light.tsc.solve(light.ground_outputs, des, True, lb, ub).u
+            ctl.ground.o_H.weight = w0
+        u_light = light.tsc.solve(light.ground.outputs, des, True, lb, ub).u
         assert np.allclose(u_changed, u_light, atol=1e-6 * max(1.0, np.abs(u_light).max()))
         differ += not np.allclose(u_default, u_light, atol=1e-3)
         assert np.allclose(ctl.tsc.solve(outs, des, True, lb, ub).u, u_default, atol=1e-6 * max(1.0, np.abs(u_default).max()))

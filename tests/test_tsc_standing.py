@@ -80,7 +80,7 @@ def _standing_with_load(seconds, load, controller=None):
         sim.step(u)
         log["t"].append(sim.time)
         log["fn"].append(sim.foot_normal_forces())
-        log["heading"].append(ctl._feet()[1])
+        log["heading"].append(ctl.ground.feet()[1])
         if sim.body_contacts():
             log["fell"] = True
             break

@@ -16,6 +16,7 @@ Per type (others: {"t_log", "msgs"} with the deserialised messages):
                                 com_vel, H_pitch, left_normal_force, right_normal_force, support_center
   flip_msgs/msg/FlipReference   t_log, refs: list of dicts (plan_id, domain, start_time, t,
                                 output_names, value (n,k), d_value, dd_value, parameters{}, figures)
+  geometry_msgs/msg/WrenchStamped  t_log, t, frame_id, force (N,3), torque (N,3)
   std_msgs/msg/String           t_log, data: list[str]
 
 A bag without metadata.yaml (its recorder was killed: no MCAP summary or index either) is
@@ -327,6 +328,13 @@ def _flip_reference(msgs):
     return {"refs": refs}
 
 
+def _wrench_stamped(msgs):
+    return {"t": np.array([_stamp(m.header.stamp) for m in msgs]),
+            "frame_id": msgs[0].header.frame_id if msgs else "",
+            "force": np.array([_vec(m.wrench.force) for m in msgs]).reshape(-1, 3),
+            "torque": np.array([_vec(m.wrench.torque) for m in msgs]).reshape(-1, 3)}
+
+
 def _string(msgs):
     return {"data": [m.data for m in msgs]}
 
@@ -339,6 +347,7 @@ _CONVERTERS = {
     "flip_msgs/msg/ContactEvent": _contact_event,
     "flip_msgs/msg/FlipReference": _flip_reference,
     "std_msgs/msg/String": _string,
+    "geometry_msgs/msg/WrenchStamped": _wrench_stamped,
 }
 
 

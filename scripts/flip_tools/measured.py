@@ -1,8 +1,9 @@
 """The paper's outputs as the robot actually had them, recomputed from a bag: /joint_states and
 /odom (same stamps) through the model on /robot_description_mjcf, with the controller's own output
 definitions (tsc_controller.outputs: centroidal pitch momentum, leg length, COM, flywheel
-momentum).  For plots of planned vs. measured; the landing verdict does not use it (it reads /odom
-only)."""
+momentum); and the feet's wrench topics in world axes, through the URDF on /robot_description as
+/tf gives it.  For plots of planned vs. measured; the landing verdict does not use it (it reads
+/odom only)."""
 from __future__ import annotations
 
 import numpy as np
@@ -26,9 +27,28 @@ def bag_mjcf(data: BagData) -> str:
     return old if old.lstrip().startswith("<mujoco") else ""
 
 
+def robot_mass(data: BagData) -> float | None:
+    """Total mass (kg) of the bag's robot (its MJCF, through MuJoCo), or None."""
+    mjcf = bag_mjcf(data)
+    if not mjcf:
+        return None
+    import mujoco
+    try:
+        return float(mujoco.mj_getTotalmass(mujoco.MjModel.from_xml_string(mjcf)))
+    except Exception:  # noqa: BLE001 - a description that is not a whole model (a stand-in's)
+        return None
+
+
 def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
     when the bag lacks the state or a model of this robot."""
+    cache = data.__dict__.setdefault("_measured_outputs", {})    # summary and plots both ask
+    if every_s not in cache:
+        cache[every_s] = _measured_outputs(data, every_s)
+    return cache[every_s]
+
+
+def _measured_outputs(data: BagData, every_s: float) -> dict | None:
     mjcf, js, od = bag_mjcf(data), data.get("/joint_states"), data.get("/odom")
     if not mjcf or js is None or od is None or not len(js["t"]) or not len(od["t"]):
         return None
@@ -58,4 +78,42 @@ def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
         res["t"].append(float(t))
         for k, o in outs.items():
             res[k].append(float(o.evaluate(dyn)[0][0]))
+    return {k: np.asarray(v) for k, v in res.items()} if res["t"] else None
+
+
+def foot_wrenches_world(data: BagData) -> dict | None:
+    """The feet's wrenches (``/left_foot/wrench``, ``/right_foot/wrench``: each in its foot link's
+    frame about its origin) in world axes, at the stamps both carry: each rotated by its link's pose
+    at the /joint_states and /odom of that stamp, through the bag's URDF (/robot_description;
+    cassie_flip_sim.link_transforms, the math of /tf).  {"t" (n,), "force" (n, 2, 3), "torque"
+    (n, 2, 3) about each foot's origin, "origin" (n, 2, 3)}, feet in the order left, right; None
+    when the bag lacks a topic, the URDF or the state."""
+    from cassie_flip_sim.foot_wrench import FOOT_LINKS, WRENCH_TOPICS
+    from cassie_flip_sim.link_transforms import LinkTransforms, link_poses
+    ws = [data.get(t) for t in WRENCH_TOPICS]
+    urdf, js, od = _last_text(data, "/robot_description"), data.get("/joint_states"), data.get("/odom")
+    if any(w is None for w in ws) or not urdf.lstrip().startswith("<") or "<robot" not in urdf \
+            or js is None or od is None:
+        return None
+    lt = LinkTransforms(urdf)
+    key = lambda t: int(round(float(t) * 1e9))
+    js_i = {key(t): i for i, t in enumerate(js["t"])}
+    od_i = {key(t): i for i, t in enumerate(od["t"])}
+    right = {key(t): i for i, t in enumerate(ws[1]["t"])}
+    edges = None
+    res = {"t": [], "force": [], "torque": [], "origin": []}
+    for i, t in enumerate(ws[0]["t"]):
+        k = key(t)
+        j, o, r = js_i.get(k), od_i.get(k), right.get(k)
+        if j is None or o is None or r is None or np.isnan(js["pos"][j]).any():
+            continue
+        lt.set_positions(js["names"], js["pos"][j])
+        if edges is None:
+            edges = lt.fixed
+        poses = link_poses(lt.root, np.r_[od["pos"][o], od["quat"][o]], lt.moving() + edges)
+        T = [poses[link] for link in FOOT_LINKS]
+        res["t"].append(float(t))
+        res["force"].append([T[0][:3, :3] @ ws[0]["force"][i], T[1][:3, :3] @ ws[1]["force"][r]])
+        res["torque"].append([T[0][:3, :3] @ ws[0]["torque"][i], T[1][:3, :3] @ ws[1]["torque"][r]])
+        res["origin"].append([T[0][:3, 3], T[1][:3, 3]])
     return {k: np.asarray(v) for k, v in res.items()} if res["t"] else None

@@ -2,8 +2,11 @@
 
 fig6.png      pitch momentum (planned per domain vs. measured: recomputed from /joint_states + /odom
               with the model on /robot_description_mjcf, flywheel share too), leg length,
-              ground normal force, x_com, pelvis pitch (planned vs. /odom), flywheel torque and
-              speed — each panel shows what the bag holds and says "not in the bag" otherwise.
+              ground normal force (the paper's panel (c): the feet's wrench topics in world axes,
+              both feet's total and each, against the FSLIP's force of the ground references,
+              fslip_planner.plan_geometry.ground_force, and m·g), x_com, pelvis pitch (planned vs.
+              /odom), flywheel torque and speed — each panel shows what the bag holds and says
+              "not in the bag" otherwise.
 pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
 torques.png   the 11 commanded motor torques.
 tsc_tick.png  histogram of MotorCommand.compute_time_us.
@@ -20,7 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .bag import NOT_SUMMARIZED, BagData, load_bag  # noqa: E402
-from .measured import measured_outputs  # noqa: E402
+from .measured import foot_wrenches_world, measured_outputs, robot_mass  # noqa: E402
 from .summary import odom_time, pitch_unwrapped, tilt  # noqa: E402
 
 DOMAIN_NAMES = {0: "standing", 1: "jumping", 2: "flight", 3: "landing"}
@@ -43,19 +46,52 @@ def _refs(data):
 
 
 def _ref_series(data, name):
-    """[(domain, t_abs, value)] of one reference output, newest plan only."""
+    """[(domain, t_abs, value)] of one reference output, newest plan only, each reference up to the
+    start of the next one (a landing re-solved after a rebound replaces the first one from then on:
+    the plot shows what the controller was given at each time)."""
     refs = _refs(data)
     if not refs:
         return []
     last_plan = refs[-1]["plan_id"]
+    plan = sorted((r for r in refs if r["plan_id"] == last_plan), key=lambda r: r["start_time"])
     out = []
-    for r in refs:
-        if r["plan_id"] != last_plan or name not in r["output_names"]:
+    for i, r in enumerate(plan):
+        if name not in r["output_names"]:
             continue
         v = np.asarray(r["value"])
         if v.ndim != 2:
             continue
-        out.append((r["domain"], r["start_time"] + r["t"], v[:, r["output_names"].index(name)]))
+        t = r["start_time"] + np.asarray(r["t"], float)
+        keep = t <= plan[i + 1]["start_time"] if i + 1 < len(plan) else np.ones(len(t), bool)
+        out.append((r["domain"], t[keep], v[keep, r["output_names"].index(name)]))
+    return out
+
+
+def planned_normal_force(data):
+    """[(domain, t_abs, Fz)] of the FSLIP's ground force along each ground reference of the newest
+    plan, each up to the start of the next one as ``_ref_series`` draws them
+    (fslip_planner.plan_geometry.ground_force, the reference's fslip_mass and leg_offset; a
+    reference without them (older bags, a fallback landing) uses the robot's mass and L as r)."""
+    from fslip_planner.plan_geometry import ground_force
+    refs = _refs(data)
+    if not refs:
+        return []
+    plan = sorted((r for r in refs if r["plan_id"] == refs[-1]["plan_id"]), key=lambda r: r["start_time"])
+    mass, out = None, []
+    for i, r in enumerate(plan):
+        p = r["parameters"]
+        m = p.get("fslip_mass")
+        if m is None:
+            mass = robot_mass(data) if mass is None else mass
+            m = mass
+        if m is None or np.ndim(r["value"]) != 2:
+            continue
+        f = ground_force(r["t"], r["output_names"], r["value"], r["d_value"], r["dd_value"], m,
+                         p.get("leg_offset", 0.0))
+        if f is not None:
+            t = r["start_time"] + f["t"]
+            keep = t <= plan[i + 1]["start_time"] if i + 1 < len(plan) else np.ones(len(t), bool)
+            out.append((r["domain"], t[keep], f["Fz"][keep]))
     return out
 
 
@@ -92,9 +128,15 @@ def _missing(ax, what):
             color="0.4", fontsize=9)
 
 
-def _plot_ref(ax, data, name, scale=1.0, label="planned"):
+def _plot_ref(ax, data, name, scale=1.0, label="planned", turns=None):
+    """The newest plan's ``name`` (:func:`_ref_series`).  ``turns``: (t, angle) of the measured
+    angle (rad): each reference is drawn on the measured turn it starts in (a landing plans the pelvis
+    near 0 rad; after a somersault the pelvis is there at ±2π)."""
     series = _ref_series(data, name)
     for i, (dom, t, v) in enumerate(series):
+        if turns is not None and len(t) and len(turns[0]):
+            at = float(np.interp(t[0], *turns))
+            v = v + 2 * np.pi * np.round((at - v[0]) / (2 * np.pi))
         ax.plot(t, v * scale, "--", color="C3", lw=1.5, label=label if i == 0 else None)
     return bool(series)
 
@@ -135,11 +177,26 @@ def _fig6(data, path):
 
     ax = axs[2]
     ax.set_ylabel("normal force (N)")
+    have = False
+    w = foot_wrenches_world(data)
+    if w is not None:
+        fz = w["force"][:, :, 2]
+        ax.plot(w["t"], fz.sum(axis=1), color="C0", lw=1.2, label="measured, both feet (wrench topics)")
+        ax.plot(w["t"], fz[:, 0], color="C0", lw=0.6, alpha=0.5, label="left foot")
+        ax.plot(w["t"], fz[:, 1], color="C1", lw=0.6, alpha=0.5, label="right foot")
+        have = True
+    for i, (_dom, t, f) in enumerate(planned_normal_force(data)):
+        ax.plot(t, f, "--", color="C3", lw=1.5, label="FSLIP (plan)" if i == 0 else None)
+        have = True
     if ce is not None and len(ce["t"]):
-        ax.step(ce["t"], ce["left_normal_force"], where="post", color="C0", label="left (contact events)")
-        ax.step(ce["t"], ce["right_normal_force"], where="post", color="C1", label="right (contact events)")
-    else:
-        _missing(ax, "/contact_events")
+        ax.plot(ce["t"], ce["left_normal_force"] + ce["right_normal_force"], "o", color="C0", ms=4,
+                label="both feet (contact events)")
+        have = True
+    mass = robot_mass(data) if have else None
+    if mass is not None:
+        ax.axhline(mass * 9.81, color="0.4", lw=0.8, ls=":", label=f"m g = {mass * 9.81:.0f} N")
+    if not have:
+        _missing(ax, "normal force")
 
     ax = axs[3]
     ax.set_ylabel("x_com (m)")
@@ -158,10 +215,10 @@ def _fig6(data, path):
 
     ax = axs[4]
     ax.set_ylabel("pelvis pitch (deg)")
-    have = _plot_ref(ax, data, "phi_pitch", scale=180 / np.pi)
-    if od is not None and len(od["pos"]) > 1:
-        t, _ = odom_time(od)
-        ax.plot(t, np.degrees(pitch_unwrapped(od["quat"])), color="C0", label="measured (/odom)")
+    pitch = (odom_time(od)[0], pitch_unwrapped(od["quat"])) if od is not None and len(od["pos"]) > 1 else None
+    have = _plot_ref(ax, data, "phi_pitch", scale=180 / np.pi, turns=pitch)
+    if pitch is not None:
+        ax.plot(pitch[0], np.degrees(pitch[1]), color="C0", label="measured (/odom)")
         have = True
     if not have:
         _missing(ax, "/odom")

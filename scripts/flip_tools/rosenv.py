@@ -133,6 +133,10 @@ CONTRACT_TOPICS: dict[str, TopicSpec] = {t.name: t for t in [
     TopicSpec("/robot_description_mjcf", "std_msgs/msg/String", True, True, 1),   # MJCF
     TopicSpec("/tf", "tf2_msgs/msg/TFMessage", True, False, 100),
     TopicSpec("/tf_static", "tf2_msgs/msg/TFMessage", True, True, 1),
+    TopicSpec("/left_foot/wrench", "geometry_msgs/msg/WrenchStamped", False, False, 1),
+    TopicSpec("/right_foot/wrench", "geometry_msgs/msg/WrenchStamped", False, False, 1),
+    TopicSpec("/fslip/com_path", "nav_msgs/msg/Path", True, True, 1),
+    TopicSpec("/fslip/targets", "visualization_msgs/msg/MarkerArray", True, True, 1),
 ]}
 
 

@@ -61,6 +61,7 @@ EXPECTED_ROTATION_DEG = {"frontflip": 360.0, "backflip": -360.0, "hop": 0.0}
 RPM_PER_RADPS = 60.0 / (2.0 * math.pi)
 JUMPING = 1  # ContactEvent.DOMAIN_JUMPING (FlipReference.domain)
 FLIGHT = 2  # ContactEvent.DOMAIN_FLIGHT
+LANDING = 3  # ContactEvent.DOMAIN_LANDING
 LIFT_OFF, TOUCH_DOWN = 0, 1
 
 
@@ -298,8 +299,37 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             "x_start_m": next((r["parameters"].get("x_start") for r in refs if r["domain"] == JUMPING), None),
             "planned_peak_flywheel_speed_radps": _f(max(r["peak_flywheel_speed"] for r in refs), 2),
         }
+        _tracking(s, data, fr["refs"], t_fall, notes)
     s["verdict_notes"] = notes
     return s
+
+
+def _tracking(s: dict, data: BagData, refs: list[dict], t_fall: float, notes: list[str]) -> None:
+    """``tracking``: the jumping and landing references against the measured outputs
+    (flip_tools.tracking), and the flywheel's peak speed in the flight and in the landing."""
+    from .measured import measured_outputs
+    from .tracking import newest_reference, output_errors, peak_abs
+
+    lo, td = s.get("liftoff_time_s"), s.get("touchdown_time_s")
+    od = data.get("/odom")
+    t_end = min(t_fall, float(od["t"][-1])) if od is not None and len(od["t"]) else t_fall
+    js = data.get("/joint_states")
+    if lo is not None and td is not None and js is not None and "flywheel" in js["names"]:
+        v = js["vel"][:, js["names"].index("flywheel")] * RPM_PER_RADPS
+        s["flight_peak_flywheel_rpm"] = _f(peak_abs(js["t"], v, lo, td), 1)
+        s["landing_peak_flywheel_rpm"] = _f(peak_abs(js["t"], v, td, t_end), 1)
+    m = measured_outputs(data)
+    if m is None:
+        notes.append("tracking: no model or state in the bag to measure the outputs")
+        return
+    tracking = {}
+    jump = newest_reference(refs, JUMPING)
+    if jump is not None and lo is not None:
+        tracking["jumping"] = output_errors(m, jump, -np.inf, lo)
+    land = newest_reference(refs, LANDING)
+    if land is not None and td is not None:
+        tracking["landing"] = output_errors(m, land, td, t_end)
+    s["tracking"] = tracking
 
 
 def _event_state(od, t, th, R, w_world, t_event):

@@ -104,6 +104,13 @@ def motor_command_layout(buf, names=None):
     return names, {'step': step, 'effort': c.field(_F8), 'compute_time_us': c.field(_F4, 1)}
 
 
+def wrench_stamped_layout(buf, names=None):
+    """geometry_msgs/WrenchStamped: ``(None, {wrench})``, wrench = force xyz and torque xyz."""
+    c = CdrCursor(buf, 12)
+    c.skip_string()                                     # header.frame_id
+    return None, {'wrench': c.field(_F8, 6)}
+
+
 def fields(buf, layout):
     """Numpy views of ``buf`` for a layout's fields (read-only for ``bytes``)."""
     return {k: np.frombuffer(buf, dtype, n, off) for k, (off, n, dtype) in layout.items()}

@@ -35,7 +35,7 @@ from rclpy.signals import SignalHandlerGuardCondition
 
 # the readers of serialized messages (no ROS in them), here for the nodes that import them from here
 from .cdr import (_STAMP, CdrCursor, MessageReader, fields, joint_state_layout,  # noqa: F401
-                  motor_command_layout, odometry_layout, read_stamp_ns)
+                  motor_command_layout, odometry_layout, read_stamp_ns, wrench_stamped_layout)
 
 #: state and command topics: newest only, no retransmission (a lost message is re-sent on timeout)
 STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,

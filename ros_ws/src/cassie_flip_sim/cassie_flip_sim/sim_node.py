@@ -8,7 +8,10 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
      on it), and ``/clock`` every ``clock_rate`` period (default 200 Hz: every 10th step) and at the
      last step;
   3. wait for the ``/motor_command`` with ``step == k`` (older ones are dropped; on a timeout the
-     state is sent again and the silence is reported), apply it, step.
+     state is sent again and the silence is reported), apply it, step;
+  4. every ``wrench_rate`` period (default 200 Hz: every 10th step, the steps of ``/clock``), publish
+     each foot's ground contact wrench of state k (``foot_wrench``: the contact forces solved at
+     state k, in the foot link's frame) on ``/left_foot/wrench``, ``/right_foot/wrench``, stamped k·dt.
 The per-step messages are published from preallocated serialized templates and the commands read
 from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``); in lockstep, by default
 through rcl's C API (``_rcl_io``: publish, and ``CommandWait`` for the command), ``rcl_io:=false``
@@ -38,6 +41,7 @@ import time
 import numpy as np
 import rclpy
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
@@ -49,9 +53,11 @@ from std_srvs.srv import Trigger
 from . import _rcl_io
 from .lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet, cpu_per_step_line,
                        joint_state_layout, motor_command_layout, ns_to_stamp,
-                       odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns)
+                       odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
+                       wrench_stamped_layout)
 from .node_stop import run_until_stopped
 from .contacts import Event
+from .foot_wrench import FOOT_LINKS, WRENCH_TOPICS
 from .model import Scenario, export_mjcf
 from .simulator import Simulator
 from .urdf import export_urdf
@@ -73,6 +79,8 @@ CLOCK_RATE_HZ = 200.0
 MATCH_SETTLE_S = 0.3
 #: steps between the loop's turns of the services' executor (and, in the compiled loop, its returns)
 SPIN_EVERY = 200
+#: default rate of the feet's wrench topics (WRENCH_TOPICS), Hz (the steps of /clock and /tf)
+WRENCH_RATE_HZ = 200.0
 
 
 def make_scenario(name, platform_height, ground_offset):
@@ -144,11 +152,15 @@ class SimNode:
         clock_rate = float(_declare(n, 'clock_rate', CLOCK_RATE_HZ))
         self.clock_every = max(1, int(round(1.0 / (clock_rate * self.dt)))) if clock_rate > 0 else 1
         self.clock_k = -1               # step of the newest /clock published
+        # the feet's wrenches every wrench_every steps (wrench_rate <= 0: none; >= the step rate: every step)
+        wrench_rate = float(_declare(n, 'wrench_rate', WRENCH_RATE_HZ))
+        self.wrench_every = max(1, int(round(1.0 / (wrench_rate * self.dt)))) if wrench_rate > 0 else 0
 
         self.pub_clock = n.create_publisher(Clock, '/clock', STREAM_QOS)
         self.pub_js = n.create_publisher(JointState, '/joint_states', STREAM_QOS)
         self.pub_odom = n.create_publisher(Odometry, '/odom', STREAM_QOS)
         self.pub_events = n.create_publisher(ContactEvent, '/contact_events', LATCHED_QOS)
+        self.pub_wrench = [n.create_publisher(WrenchStamped, topic, STREAM_QOS) for topic in WRENCH_TOPICS]
         # the MJCF (the controller's model, with this robot's flywheel and torque limit) and the URDF
         # of the same model (robot_state_publisher's topic: tf, viewers)
         self.pub_mjcf = n.create_publisher(String, '/robot_description_mjcf', LATCHED_QOS)
@@ -189,6 +201,11 @@ class SimNode:
         odom.header.frame_id = 'world'
         self.msg_odom = RawMessage(odom, odometry_layout)
         self.read_command = MessageReader(motor_command_layout)
+        self.msg_wrench = []
+        for link in FOOT_LINKS:
+            w = WrenchStamped()
+            w.header.frame_id = link
+            self.msg_wrench.append(RawMessage(w, wrench_stamped_layout))
 
     def _publish_clock(self, k):
         if self.rcl_io:
@@ -212,6 +229,17 @@ class SimNode:
             m.stamp(ns)
         self.pub_odom.publish(self.msg_odom.data())
         self.pub_js.publish(self.msg_js.data())
+
+    def _publish_wrenches(self, k):
+        """The feet's wrenches of state k (the simulator's, from its step out of k), stamped k·dt."""
+        ns = k * self.dt_ns
+        for pub, msg, w in zip(self.pub_wrench, self.msg_wrench, self.sim.wrenches):
+            msg.fields['wrench'][:] = w
+            if self.rcl_io:
+                _rcl_io.publish(pub.handle.pointer, msg.buf, ns)
+            else:
+                msg.stamp(ns)
+                pub.publish(msg.data())
 
     def _publish_event(self, k, event):
         msg = ContactEvent()
@@ -382,11 +410,16 @@ class SimNode:
                     self.msg_odom.buf, self.msg_js.buf, self.msg_clock.buf, js['position'], js['velocity'],
                     js['effort'], od['pose'], od['twist'], self.command, self._u_in, parts[1], self.dt_ns,
                     self.clock_every, int(COMMAND_RESEND_S * 1e9), SPIN_EVERY)
+                if self.wrench_every:
+                    (left, right), (ml, mr) = self.pub_wrench, self.msg_wrench
+                    self.sim_loop.set_wrenches(left.handle.pointer, right.handle.pointer, ml.buf, mr.buf,
+                                               ml.fields['wrench'], mr.fields['wrench'], self.wrench_every)
             elif self.compiled_loop:
                 log.warn('compiled loop unavailable for this simulator: the loop steps in Python')
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
                  f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m'
+                 f'; foot wrenches {f"every {self.wrench_every} steps" if self.wrench_every else "off"}'
                  f'{"; compiled loop" if self.sim_loop is not None else ""}; {scheduling_note()}')
         wall0 = t_start = time.monotonic()
         cpu0 = (time.process_time(), time.thread_time())
@@ -460,8 +493,13 @@ class SimNode:
                             log.info('controller back: damping released')
                             damping = False
                 c2 = clock()
-                self.sim.step(self.command)
-                spent['simulate'] += clock() - c2
+                wrench = self.wrench_every > 0 and k % self.wrench_every == 0
+                self.sim.step(self.command, wrench=wrench)
+                c3 = clock()
+                spent['simulate'] += c3 - c2
+                if wrench:
+                    self._publish_wrenches(k)
+                    spent['publish state'] += clock() - c3
                 k += 1
                 if self.mode == 'realtime':
                     lag = wall0 + k * self.dt - time.monotonic()

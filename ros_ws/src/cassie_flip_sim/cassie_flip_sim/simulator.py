@@ -2,8 +2,9 @@
 
 Stepping: between steps the data holds ``mj_step1`` of the current state (kinematics, contacts,
 passive forces).  ``step(u)`` clips u with the motor limits, runs ``mj_step2`` (forces with u,
-Euler integration), records the foot normal forces that acted during that step, then runs
-``mj_step1`` of the new state.  Same sequence as ``mj_step``; bit-for-bit repeatable.
+Euler integration), records the foot normal forces that acted during that step (and, with
+``wrench=True``, each foot's contact wrench: ``foot_wrench``), then runs ``mj_step1`` of the new
+state.  Same sequence as ``mj_step``; bit-for-bit repeatable.
 
 ``backend="native"`` (default) runs that step, the state of ``state_into`` and the body-contact test
 in C++ on the MuJoCo C API (``cassie_flip_sim._native``, native/step.cpp); ``"python"`` is the numpy
@@ -21,6 +22,7 @@ from . import _native
 from . import model as M
 from . import robot_params as P
 from .contacts import ContactDetector, ContactEvent, Event, FootForces
+from .foot_wrench import FootWrenches
 from .motor_limits import MotorLimits, with_flywheel_torque
 
 
@@ -48,6 +50,11 @@ class Simulator:
         self._foot_geoms = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, g)
                             for side in ("left", "right") for g in M.FOOT_GEOMS[side]]
         self._foot_forces = FootForces(m)
+        self._foot_wrenches = FootWrenches(m)
+        #: the feet's wrenches (foot_wrench: left, right; force, torque in the foot's frame) of the
+        #: state of step ``wrench_step``, from the last ``step(u, wrench=True)``
+        self.wrenches = np.zeros((2, 6))
+        self.wrench_step = -1
         self._build_joint_table()
         if backend not in ("native", "python"):
             raise ValueError(f"backend must be 'native' or 'python', not {backend!r}")
@@ -82,14 +89,18 @@ class Simulator:
             m._address, self.data._address, self._motor_dof, self._act_ids, self.limits.torque_limit,
             self.limits.inv_no_load_speed, side, self._jq, self._jv,
             np.array([qa for _, qa in self._balls], int), np.array([i for i, _ in self._balls], int),
-            self._pelvis, (m.geom_contype == M.BODY_CONTYPE).astype(int))
+            self._pelvis, (m.geom_contype == M.BODY_CONTYPE).astype(int), self._foot_wrenches.bodies)
 
-    def step(self, u) -> None:
+    def step(self, u, wrench: bool = False) -> None:
         """Advance one timestep with joint-side torques u (contract motor order), clipped to the
-        torque–speed envelope."""
+        torque–speed envelope.  ``wrench``: also the feet's contact wrenches of the state stepped
+        from, into ``wrenches`` (``wrench_step`` = its step)."""
+        if wrench:
+            self.wrench_step = self._step
         if self._native is not None:
             t = self.data.time
-            self.forces = self._native.step(u, self._u_applied, self.clip_torques)
+            self.forces = self._native.step(u, self._u_applied, self.clip_torques,
+                                            self.wrenches if wrench else None)
             self.last_command = self._u_applied.copy()
             ev = self.detector.update(self._step, t, *self.forces)
             if ev is not None:
@@ -105,6 +116,8 @@ class Simulator:
         t = d.time
         mujoco.mj_step2(m, d)
         self.forces = self._foot_forces(m, d)
+        if wrench:
+            self._foot_wrenches(m, d, out=self.wrenches)
         ev = self.detector.update(self._step, t, *self.forces)
         if ev is not None:
             self.events.append(ev)

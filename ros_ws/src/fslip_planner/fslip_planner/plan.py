@@ -184,6 +184,12 @@ def _resample(t, cols, dt=DT_SAMPLE):
     return tt, V, D, DD
 
 
+def leg_offset(p, L_stand: float) -> float:
+    """A reference's leg length L minus the FSLIP's r: the robot's standing L minus the FSLIP's
+    standing r (see ground_reference)."""
+    return L_stand - float(F.static_state(p, L_stand)[0][1])
+
+
 def ground_reference(domain, sol: Jm.Solution, x_offset: float, figures=None, parameters=None):
     """JUMPING / LANDING reference (H_pitch, L, x_com, phi_pitch) from FSLIP knots.
 
@@ -191,17 +197,19 @@ def ground_reference(domain, sol: Jm.Solution, x_offset: float, figures=None, pa
     changes with the load it carries (0.861 m unloaded, 0.864 m standing, measured), so it follows
     the FSLIP's real leg length r, offset so that standing at rest maps to the robot's standing L;
     the actuated length L = r + F^s/K would ask the robot to shorten its leg whenever the FSLIP
-    spring unloads."""
+    spring unloads.  Parameters ``leg_offset`` (that offset, m) and ``fslip_mass`` (kg) say how to
+    turn it back into the FSLIP's motion and force (plan_geometry; the controller does not read them)."""
     o = knot_outputs(sol)
     x, xd, xdd = o["x"]
     p = sol.params
-    L_stand = _Robot.get_by_params(p).L0
-    r_stand = float(F.static_state(p, L_stand)[0][1])
+    offset = leg_offset(p, _Robot.get_by_params(p).L0)
     (r, rd, rdd) = (np.hypot(x, sol.X[:, 1]), ) + o["r_dot"]
-    cols = [o["H"], (r + (L_stand - r_stand), rd, rdd), (x + x_offset, xd, xdd), o["beta"]]
+    cols = [o["H"], (r + offset, rd, rdd), (x + x_offset, xd, xdd), o["beta"]]
     tt, V, D, DD = _resample(sol.t, cols)
+    params = dict(parameters or {})
+    params.update(leg_offset=offset, fslip_mass=float(p.m))
     return Reference(domain, tt, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD,
-                     dict(parameters or {}), dict(figures or {}))
+                     params, dict(figures or {}))
 
 
 # ------------------------------------------------------------------------------------------ result
@@ -431,7 +439,8 @@ class FlipSession:
         fig.update(flight_time=fp["T"], rotation_to_go=fp["theta_T"] - float(state.pelvis_pitch),
                    solve_time=0.0, iterations=0, aborted=float(self.aborted))
         return Reference(FLIGHT, fp["t"], ["phi_pitch", "L"], V, D, DD,
-                         {"flight_time": fp["T"], "T1": fp["T1"], "beta_liftoff": -lo["beta"]}, fig)
+                         {"flight_time": fp["T"], "T1": fp["T1"], "beta_liftoff": -lo["beta"],
+                          "leg_offset": leg_offset(p, self.robot.L0)}, fig)
 
     # --- landing
     def landing_reference(self, state: MeasuredState) -> Optional[Reference]:

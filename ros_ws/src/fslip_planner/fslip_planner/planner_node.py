@@ -6,7 +6,10 @@
   reason.
 - ``/contact_events`` LIFT_OFF → flight plan (momentum transmission) from the measured state;
   TOUCH_DOWN → landing optimisation from the measured post-impact state.
-Every reference goes out on ``/fslip/reference`` with its solve time.
+Every reference goes out on ``/fslip/reference`` with its solve time, and then, for a viewer, as
+geometry in the world frame (``plan_geometry``): its COM path on ``/fslip/com_path`` (nav_msgs/Path)
+and the foot targets of the flip so far on ``/fslip/targets`` (visualization_msgs/MarkerArray: a
+DELETEALL, then a sphere per target), both latched (transient local, depth 1).
 """
 from __future__ import annotations
 
@@ -18,12 +21,18 @@ import numpy as np
 import rclpy
 from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
 from cassie_flip_sim.node_stop import run_until_stopped
+from cassie_flip_sim.robot_params import FOOT_RADIUS
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry, Path
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from visualization_msgs.msg import Marker, MarkerArray
 
+from .feasibility import rotation_xyzw
 from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
+from .plan_geometry import reference_geometry
 
 KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP: 'frontflip',
          RequestFlip.Request.HOP: 'hop'}
@@ -31,6 +40,14 @@ KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP
 START_LEAD_S = 0.25
 #: wall seconds a request waits for the simulator's /odom (the measured state a plan starts from)
 STATE_TIMEOUT_S = 2.0
+#: /fslip/com_path and /fslip/targets: the newest, to a viewer that comes later too
+VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DOMAIN_NAMES = {FlipReference.DOMAIN_JUMPING: 'jumping', FlipReference.DOMAIN_FLIGHT: 'flight',
+                FlipReference.DOMAIN_LANDING: 'landing'}
+#: marker colours (r, g, b) of the foot targets: where a stance foot is, where a flight touches down
+TARGET_COLORS = {'stance': (0.1, 0.7, 0.2), 'touchdown': (1.0, 0.45, 0.0)}
+TARGET_DIAMETER = 0.06
 
 
 def measured_state(ev):
@@ -45,6 +62,56 @@ def measured_state(ev):
         pelvis_pitch=pitch,
         pelvis_pitch_rate=ev.pelvis_twist.angular.y,
         support_center=np.array([ev.support_center.x, ev.support_center.y, ev.support_center.z]))
+
+
+def com_of_standing(state, robot):
+    """World COM of the robot standing with its pelvis at ``state`` (its standing COM in the pelvis
+    frame carried by the measured pelvis, as the jumping plan's x_start is found)."""
+    return np.asarray(state.position, float) + rotation_xyzw(state.orientation) @ robot.com_in_pelvis
+
+
+def geometry_of(msg, **anchor):
+    """plan_geometry.reference_geometry of a FlipReference message's fields; ``anchor``: its
+    com, com_velocity, foot_z, landing_foot_z."""
+    return reference_geometry(msg.domain, stamp_to_ns(msg.start_time) * 1e-9, msg.t, list(msg.output_names),
+                              np.asarray(msg.value, float), dict(zip(msg.parameter_names, msg.parameter_values)),
+                              flight_time=msg.flight_time, liftoff_xdot=msg.liftoff_xdot,
+                              liftoff_zdot=msg.liftoff_zdot, **anchor)
+
+
+def path_message(geo):
+    """nav_msgs/Path (frame world) of a PlanGeometry, each pose stamped with its sim time."""
+    path = Path()
+    path.header.frame_id = 'world'
+    ns_to_stamp(int(round(geo.t[0] * 1e9)), path.header.stamp)
+    for t, p, q in zip(geo.t, geo.com, geo.quaternions()):
+        ps = PoseStamped()
+        ps.header.frame_id = 'world'
+        ns_to_stamp(int(round(t * 1e9)), ps.header.stamp)
+        ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, p)
+        o = ps.pose.orientation
+        o.x, o.y, o.z, o.w = map(float, q)
+        path.poses.append(ps)
+    return path
+
+
+def target_markers(geo, plan_id, domain):
+    """A sphere Marker (frame world, namespace ``<domain>/<label>``, id = plan id) per foot target."""
+    out = []
+    for label, point in geo.feet:
+        m = Marker()
+        m.header.frame_id = 'world'
+        ns_to_stamp(int(round(geo.t[0] * 1e9)), m.header.stamp)
+        m.ns = f'{DOMAIN_NAMES.get(domain, domain)}/{label}'
+        m.id = int(plan_id)
+        m.type, m.action = Marker.SPHERE, Marker.ADD
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = map(float, point)
+        m.pose.orientation.w = 1.0
+        m.scale.x = m.scale.y = m.scale.z = TARGET_DIAMETER
+        m.color.r, m.color.g, m.color.b = TARGET_COLORS.get(label, (0.5, 0.5, 0.5))
+        m.color.a = 1.0
+        out.append(m)
+    return out
 
 
 def pelvis_state(odom):
@@ -66,6 +133,9 @@ class PlannerNode:
         # flywheel motor's torque limit, N·m (0 = the flywheel's own), as in the simulator
         self.flywheel_torque = float(n.declare_parameter('flywheel_torque', 0.0).value)
         self.pub = n.create_publisher(FlipReference, '/fslip/reference', LATCHED_QOS)
+        self.pub_path = n.create_publisher(Path, '/fslip/com_path', VIEW_QOS)
+        self.pub_targets = n.create_publisher(MarkerArray, '/fslip/targets', VIEW_QOS)
+        self._targets = {}              # the foot-target markers of the flip under way, by (ns, id)
         n.create_service(RequestFlip, '/request_flip', self._on_request)
         n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
         # The newest /clock is read on demand from a node no executor spins (no 2 kHz callbacks).
@@ -122,6 +192,23 @@ class PlannerNode:
         self.node.get_logger().info(
             f'plan {self.plan_id}: domain {ref.domain} published, start t={start_time:.4f} s, '
             f'solve {1e3 * ref.figures.get("solve_time", 0.0):.1f} ms')
+        return msg
+
+    def _publish_geometry(self, msg, **anchor):
+        """/fslip/com_path and /fslip/targets of a reference just published (module doc)."""
+        try:
+            geo = geometry_of(msg, **anchor)
+        except ValueError as e:
+            self.node.get_logger().warn(f'plan {msg.plan_id}: domain {msg.domain}: no geometry to show: {e}')
+            return
+        if msg.domain == FlipReference.DOMAIN_JUMPING:
+            self._targets = {}
+        # a second flight or landing of the flip (a rebound) replaces the first's targets
+        self._targets.update({(m.ns, m.id): m for m in target_markers(geo, msg.plan_id, msg.domain)})
+        self.pub_path.publish(path_message(geo))
+        clear = Marker(action=Marker.DELETEALL)
+        clear.header.frame_id = 'world'
+        self.pub_targets.publish(MarkerArray(markers=[clear] + list(self._targets.values())))
 
     def _on_request(self, req, res):
         res.accepted = False
@@ -152,7 +239,10 @@ class PlannerNode:
         self.session = session
         start = self._sim_now() + START_LEAD_S
         session.started(start)
-        self._publish(ref, start)
+        msg = self._publish(ref, start)
+        ground = session.platform + FOOT_RADIUS           # the contact spheres' centres (the FSLIP's foot)
+        self._publish_geometry(msg, com=com_of_standing(state, session.robot), foot_z=ground,
+                               landing_foot_z=FOOT_RADIUS)
         f = ref.figures
         res.accepted = True
         res.plan_id = self.plan_id
@@ -182,7 +272,11 @@ class PlannerNode:
             if ref.domain == FlipReference.DOMAIN_FLIGHT and 'phi_pitch' in ref.names:
                 ref.value[:, ref.names.index('phi_pitch')] += self.pitch_turns
                 self._flight_end_pitch = float(ref.value[-1, ref.names.index('phi_pitch')])
-            self._publish(ref, state.t)
+            msg = self._publish(ref, state.t)
+            sc = state.support_center
+            self._publish_geometry(msg, com=state.com, com_velocity=state.com_velocity, foot_z=float(sc[2]),
+                                   landing_foot_z=float(sc[2]) - self.session.platform
+                                   if ev.event == ContactEvent.LIFT_OFF else None)
         if ev.event == ContactEvent.TOUCH_DOWN and self._flight_end_pitch is not None:
             # the unwrapped pitch at touch-down: the measured one, plus the whole turns that bring it
             # nearest to where the flight plan ended

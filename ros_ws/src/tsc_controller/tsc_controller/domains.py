@@ -1,6 +1,13 @@
-"""Domains (paper §II-B, §V-A), references, and the :class:`Controller` facade.
+"""The :class:`Controller` facade: domain switching and the outputs and targets of each domain
+(paper §II-B, §V-A).
 
-Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs per domain:
+Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3 (:class:`reference.Domain`;
+the references are :class:`reference.SampledReference`, the settings :class:`config.ControllerConfig`,
+the quintic and leg-catch profiles in :mod:`profiles`).  Each domain is an object that owns its
+outputs and builds their desired values per tick (:class:`Standing`, :class:`Jumping`,
+:class:`Flight`, :class:`Landing`); the ground domains share :class:`GroundTargets` (the standing
+targets, the feet's contact and swing).  The :class:`Controller` switches between them and solves the
+QP of the one it is in.  Outputs per domain:
 
 * STANDING — the jumping/landing outputs with constant desired values: H_pitch -> 0,
   L -> L_stand, (x_com, y_com) -> middle of the feet, pelvis (roll, pitch, yaw) -> (0, 0, feet heading);
@@ -11,7 +18,7 @@ Domains follow flip_msgs: STANDING=0, JUMPING=1, FLIGHT=2, LANDING=3.  Outputs p
   values.
 * FLIGHT — Y1 = H_flywheel - H_flywheel^des(t) (eq. Y^F_1);  t < T1: per-leg L and the motor joints
   except the knees held at their lift-off values q+, and the pelvis y axis held along world y (not in
-  the paper: see DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
+  the paper: see config.DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
   pitch -> 0, hip roll/yaw held (eq. Y^F_2), per leg since Cassie has two.
 
 Switching: a JUMPING reference whose start time has come starts the flip (if it is not more than
@@ -40,439 +47,28 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from enum import IntEnum
 
 import numpy as np
 import pinocchio as pin
 
 from . import outputs as O
-from .dynamics import BACKENDS, SIDES, Dynamics
+from .config import ControllerConfig
+from .dynamics import SIDES, Dynamics
 from .limits import TorqueLimits
+from .profiles import LEG_RISE_TIME, leg_catch, leg_catch_duration, quintic
+from .reference import Domain, SampledReference
 from .state import StateConverter
-from .tsc import SOLVERS, TSC, Desired
+from .tsc import TSC, Desired
 
-
-class Domain(IntEnum):
-    STANDING = 0
-    JUMPING = 1
-    FLIGHT = 2
-    LANDING = 3
-
-
+#: ContactEvent.event values
 LIFT_OFF, TOUCH_DOWN, BODY_CONTACT = 0, 1, 2
-
-
-class SampledReference:
-    """A FlipReference in plain Python: samples ``t`` (s from start_time) x ``names``.
-
-    ``value``, ``d_value``, ``dd_value`` are (len(t), len(names)) (or flat row-major, as in the message).
-    """
-
-    def __init__(self, domain, t, names, value, d_value=None, dd_value=None, start_time=0.0,
-                 plan_id=0, parameters=None):
-        self.domain = Domain(int(domain))
-        self.t = np.asarray(t, float)
-        self.names = list(names)
-        n, k = len(self.t), len(self.names)
-
-        def arr(x):
-            return np.zeros((n, k)) if x is None or len(x) == 0 else np.asarray(x, float).reshape(n, k)
-        self.value, self.d_value, self.dd_value = arr(value), arr(d_value), arr(dd_value)
-        self._rows = np.concatenate((self.value, self.d_value, self.dd_value), axis=1)   # sampled at once
-        self.start_time = float(start_time)
-        self.plan_id = int(plan_id)
-        self.parameters = dict(parameters or {})
-        self._col = {nm: i for i, nm in enumerate(self.names)}
-
-    @classmethod
-    def from_msg(cls, msg):
-        """From a flip_msgs/FlipReference (duck-typed; no ROS import here)."""
-        st = msg.start_time.sec + 1e-9 * msg.start_time.nanosec
-        return cls(msg.domain, msg.t, msg.output_names, msg.value, msg.d_value, msg.dd_value, st,
-                   msg.plan_id, dict(zip(msg.parameter_names, msg.parameter_values)))
-
-    @property
-    def duration(self):
-        return float(self.t[-1]) if len(self.t) else 0.0
-
-    def has(self, name):
-        return name in self._col
-
-    def sample(self, tau):
-        """{name: (value, d_value, dd_value)} at tau (s from the reference's origin), clamped to the ends."""
-        t = self.t
-        if tau <= t[0]:
-            i, a = 0, 0.0
-        elif tau >= t[-1]:
-            i, a = len(t) - 2, 1.0
-        else:
-            i = int(np.searchsorted(t, tau)) - 1
-            a = (tau - t[i]) / (t[i + 1] - t[i])
-        R = self._rows
-        row = (R[0] if len(t) == 1 else (1 - a) * R[i] + a * R[i + 1]).tolist()
-        k = len(self.names)
-        return {nm: (row[c], row[k + c], row[2 * k + c]) for nm, c in self._col.items()}
-
-
-def quintic(y0, y1, T, s, v0=None):
-    """Quintic from (y0, v0, 0) to (y1, 0, 0) over T (min-jerk when v0 = 0), at time s: (y, ydot, yddot).
-
-    y = y0 + (y1 - y0) p(x) + v0 (s + T r(x)),  x = s/T,  p = 10x^3 - 15x^4 + 6x^5,  r = -6x^3 + 8x^4 - 3x^5."""
-    if T <= 0 or s >= T:
-        y1 = np.asarray(y1, float)
-        z = np.zeros(y1.shape)
-        return y1, z, z
-    x = max(s, 0.0) / T
-    x2 = x * x
-    x3 = x2 * x
-    p, dp, ddp = x3 * (10 - 15 * x + 6 * x2), x2 * (30 - 60 * x + 30 * x2) / T, x * (60 - 180 * x + 120 * x2) / T ** 2
-    r, dr, ddr = x3 * (-6 + 8 * x - 3 * x2), x2 * (-18 + 32 * x - 15 * x2) / T, x * (-36 + 96 * x - 60 * x2) / T ** 2
-    if (type(y0) is np.ndarray and type(y1) is np.ndarray and y0.dtype == y1.dtype == np.float64
-            and y0.ndim == 1 and y0.shape == y1.shape
-            and (v0 is None or (type(v0) is np.ndarray and v0.dtype == np.float64 and v0.shape == y0.shape))):
-        # the expressions below element by element in Python floats (the same operations in the same
-        # order: the same numbers), for the 1-3 element outputs of a tick, where numpy's per-call cost
-        # is most of the time
-        a, b = y0.tolist(), y1.tolist()
-        d = [bi - ai for ai, bi in zip(a, b)]
-        if v0 is None:
-            return (np.array([ai + p * di for ai, di in zip(a, d)]), np.array([dp * di for di in d]),
-                    np.array([ddp * di for di in d]))
-        c0, c1, c2 = max(s, 0.0) + T * r, 1.0 + T * dr, T * ddr
-        v = v0.tolist()
-        return (np.array([ai + p * di + c0 * vi for ai, di, vi in zip(a, d, v)]),
-                np.array([dp * di + c1 * vi for di, vi in zip(d, v)]),
-                np.array([ddp * di + c2 * vi for di, vi in zip(d, v)]))
-    y1 = np.asarray(y1, float)
-    d = y1 - y0
-    if v0 is None:
-        return y0 + p * d, dp * d, ddp * d
-    return y0 + p * d + (max(s, 0.0) + T * r) * v0, dp * d + (1.0 + T * dr) * v0, ddp * d + T * ddr * v0
-
-
-#: s, the leg's min-jerk rise to the standing length after the catch (leg_catch)
-LEG_RISE_TIME = 1.5
-
-
-def leg_catch(L0, v0, L1, t, decel=15.0, L_min=0.50, rise_time=LEG_RISE_TIME):
-    """Leg length after a touch-down at speed v0 < 0: constant deceleration a over the stroke
-    d = v0^2 / (2 a) (d capped at L0 - L_min, a raised to match), then a min-jerk rise to L1 over
-    ``rise_time``.  Returns (L, Ldot, Lddot) at time t after touch-down.  A quintic that starts with
-    the touch-down velocity either overshoots the leg stroke or ends with a deceleration above g
-    that throws the robot off the ground again; this profile does neither."""
-    if v0 >= 0.0:      # already rising (a re-anchor mid-landing): keep that velocity, do not stop the leg
-        return quintic(np.array([L0]), np.array([L1]), rise_time, t, np.array([v0]))
-    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
-    a = v0 * v0 / (2.0 * d)
-    tc = -v0 / a
-    if t < tc:
-        return np.array([L0 + v0 * t + 0.5 * a * t * t]), np.array([v0 + a * t]), np.array([a])
-    return quintic(np.array([L0 - d]), np.array([L1]), rise_time, t - tc)
-
-
-def leg_catch_duration(L0, v0, decel=15.0, L_min=0.50, rise_time=LEG_RISE_TIME):
-    """Time after which :func:`leg_catch` has reached its final value."""
-    if v0 >= 0.0:
-        return rise_time
-    d = min(v0 * v0 / (2.0 * decel), max(L0 - L_min, 0.02))
-    return -v0 / (v0 * v0 / (2.0 * d)) + rise_time
-
-
-DEFAULT_GAINS = {
-    # name: (weight, kp, kd)
-    "H_pitch": (1.0, 10.0, 0.0),
-    "L": (10.0, 100.0, 20.0),
-    # COM weight 100: with 10, per unit of pitch moment a COM error cost ~100x less than an H_pitch
-    # error, so the QP took the landing's momentum removal from horizontal ground forces
-    # (moment h F_x) and let the COM run off the feet (measured: x_com 0.5 m off after a 0.6 m drop
-    # with the flywheel at 150 rad/s; lands with 100)
-    "com": (100.0, 100.0, 20.0),
-    "pelvis": (1.0, 100.0, 20.0),
-    "H_flywheel": (1.0, 20.0, 0.0),
-    # leg length in flight, weight 100: with 10 the QP gave up the tuck and then folded the legs to help
-    # the saturated flywheel turn the body (measured frontflip: touch-down on 0.71 m legs at 3.3 m/s,
-    # knees on the ground 0.27 s later; with 100, on 1.06-1.12 m legs, touch-down within 0.1 rad)
-    "L_leg": (100.0, 100.0, 20.0),
-    "joints": (1.0, 100.0, 20.0),
-    "beta_leg": (10.0, 100.0, 20.0),
-    # FLIGHT after T1: the feet flat for the touch-down.  A frontflip's feet, held on the pelvis until
-    # T1, are near vertical then; with (1, 100, 20) the frontflip touched down heel first, toes 28 deg
-    # up (42 with the sine output FootPitch was before).  Measured offline (scripts/bench_landings.py,
-    # its 15 start times and 15 others, 0.35 ... 3.45 s; backflips / frontflips landed):
-    # (1, 100, 20) 15 / 13 and 15 / 14; (10, 400, 40) 15 / 12; (10, 900, 60) 15 / 15 and 15 / 14,
-    # toes 13 deg up at touch-down.  It trades against flip C (--platform 0.5 --apex 1.2, 15 start
-    # times): landed 9 with (1, 100, 20), 5 with (10, 900, 60) (3-6 with the gains between; 4 with the
-    # sine); --ground-offset 0.1 in place (which came down on the take-off ground below the raised area:
-    # a plain frontflip, not flip D): 13 and 15 (11 with the sine)
-    "toe_pitch": (10.0, 900.0, 60.0),
-    "swing": (10.0, 400.0, 40.0),
-    "pitch": (10.0, 100.0, 20.0),
-    # FLIGHT of a somersault, before T1: the pelvis y axis (the flywheel's) held along world y
-    # (PelvisAxisTilt; the hip joints are the only actuators that turn the pelvis off that axis).
-    # Pitch is the robot's intermediate principal axis (tucked, flywheel spin excluded: I_roll 2.2-3.2
-    # > I_pitch 2.2-2.7 > I_yaw 0.8-1.3 kg*m^2) and, while the flywheel spins against the body to speed
-    # the turn, the somersault about it is unstable (gyrostat): roll/yaw of 2-6 deg and transverse
-    # rates of 1-3 rad/s grew by touch-down; of the graph frontflips of earlier runs, all 12 with more
-    # than 0.9 rad/s fell.  Measured offline (tests/offline_flip.py, motor speed scale 3, 260 N*m, apex
-    # 1.3 m, 15 start times from 0.3 to 3.6 s; landing settings of then, catch_decel 15, landing_moment
-    # 12), landed backflips / frontflips: without 5 / 1, weight
-    # 5: 12 / 2, 10: 11 / 5, 20: 6 / 4; weight 10 over the whole flight: 2 / 5 of 10 (the hips, still
-    # turning the pelvis after T1, misplaced the feet).  Not in a hop (no turn, nothing unstable).
-    "axis": (10.0, 100.0, 20.0),
-}
-
-# JUMPING overrides (name: (weight, kp, kd)).  H_pitch keeps its ground weight, 1: with 3 the QP unloaded
-# the feet to shape the momentum (the COM ahead of the centre of pressure, less normal force turns the
-# body faster): flip A's feet left the ground 0.1 s into its crouch (docs/measurements.md).  COM weight
-# 100 as on the ground: with 10 the COM ran ahead of the plan and the jumps left too fast forward (measured, motor
-# speed scale 3, apex 1.3 m, tests/offline_flip.py: frontflip +0.86 m/s against -0.23 planned, COM
-# 0.25 m ahead; backflip +0.70 against +0.23); with 100 and the JUMPING CoP margin (ControllerConfig)
-# -0.12 and +0.20 m/s, COM within 0.02 m of the plan.
-JUMPING_GAINS = {"com": (100.0, 100.0, 20.0)}
-
-# STANDING overrides: COM kd 40.  With 20 a push rocked the standing robot from foot to foot without
-# end (the QP took the weight off one foot, then the other: a 75 N, 0.1 s sideways push at the pelvis
-# rocked it for 6 s and it fell 4.8 s after the push; a 150 N forward push, the same rocking)
-STANDING_GAINS = {"com": (100.0, 100.0, 40.0)}
 
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
 
-
-@dataclass
-class ControllerConfig:
-    solver: str = "daqp"              # measured fastest (scripts/bench_tsc.py); "proxqp" also works
-    # "native": the compiled tick (tsc_controller._native); "python": the numpy reference it is tested
-    # against (tests/test_tsc_native.py), ~2x slower per tick
-    backend: str = "native"
-    # native backend: the ground domains' per-tick targets (feet contact and anchors, momentum removal,
-    # leg catch, COM and pelvis blends) compiled (tsc_controller._native.GroundTargets), or in Python,
-    # the reference they are tested against (tests/test_tsc_native.py: the same torques to the bit).
-    # Compiled, a backflip's tick replayed takes ~70 us instead of ~100 (most of the rest is compiled).
-    compiled_targets: bool = True
-    reg: float = 1e-4
-    mu: float = 0.6
-    f_min: float = 1.0                # N, least normal force at toe and heel on the ground (unilateral)
-    # domain -> f_min there (overrides).  JUMPING and LANDING 25 N: near 0 the QP planned the feet all
-    # but unloaded whenever its tasks asked the body to decelerate (after the landing's leg catch, in
-    # the crouch) and the compliant legs took them off the ground: a rebound 0.3 s after a touch-down
-    # that tipped the robot, a crouch "lift-off" that aborted the flip (docs/measurements.md, "least
-    # normal force").  STANDING keeps 1: its start transient sank 2 mm deeper with 25.
-    f_min_domains: dict = field(default_factory=lambda: {1: 25.0, 3: 25.0})
-    cop_margin: float = 0.0           # centre of pressure kept this fraction of the foot length from its ends
-    # domain -> cop_margin there (overrides).  JUMPING 0.2: without a margin the frontflip's heels rose
-    # 8 cm in the push-off (the flat-foot QP kept them at f_min, the real feet rolled onto the toes)
-    # and it left with 1.86 m/s up against 2.31 planned; with it the heels stayed down (3 mm), 2.13 m/s
-    # (measured offline, motor speed scale 3, apex 1.3 m).  With the JUMPING COM weight 100 but no
-    # margin the backflip lifted off 0.77 s early.
-    cop_margin_domains: dict = field(default_factory=lambda: {1: 0.2})
-    rigid_springs: bool = True
-    motor_speed_scale: float = 1.0    # leg motors' no-load speeds x this, as in the simulator
-    flywheel_torque: float | None = None   # flywheel motor's limit, N·m (None or 0: 195), as in the simulator
-    # domains in which the controller is fed zero leaf-spring rates (rigid-spring model).  JUMPING: the
-    # measured rates, seen through the outputs' J v and drift, make the torques chatter at the spring
-    # frequency and the feet unload early in the push (measured: lift-off 0.08-0.12 s into a 1 s
-    # push).  Not STANDING/LANDING: there the leaf-spring modes then go undamped (a 75 N, 0.1 s lateral
-    # push rocks the robot left-right until it falls, flip landings fail the same way).  Never FLIGHT:
-    # the momenta need every rate.
-    spring_rate_zero_domains: tuple = (1,)
-    L_stand: float | None = None      # default: leg length of the first state seen
-    blend_time: float = 0.8           # s, quintic from the state at entry to the standing targets
-    grace: float = 0.1                # s a JUMPING reference may run over its end before STANDING takes over
-    # ... unless the push is still under way: with the COM rising faster than ``push_rising`` the
-    # JUMPING outputs (held at the plan's end) stay up to ``push_grace`` past the end.  Measured,
-    # frontflip (motor speed scale 3, apex 1.3 m): the leg extension lagged the plan by 0.24 m at the
-    # knees' torque limit and the feet left the ground 0.1 s after the plan's end, rising at 2.3 m/s;
-    # STANDING had taken over and the flight ran without its outputs (the body turned backwards).
-    push_grace: float = 0.3
-    push_rising: float = 1.0          # m/s
-    max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
-    t1_fraction: float = 0.75
-    # s: the FLIGHT reference is sampled this far ahead of the time since the LIFT_OFF event, so the
-    # turn ends that much before the planned touch-down.  The simulator reports a lift-off 20 steps
-    # (10 ms) after its onset and the planner plans from the state then; a touch-down that comes early
-    # (flip D: the ground 0.1 m higher than planned, 18 ms early) otherwise meets a body still turning
-    # (4.5 rad/s, +348 deg, then +383 deg after it).  Measured offline (scripts/bench_landings.py, 15
-    # start times; D: --ground-offset 0.1 --apex 1.2; A: --distance 1.0 --apex 1.2 --seconds 20),
-    # landed backflips, frontflips, C, A, D: 0 s: 15, 15, 15, 7, 2; 0.01 s: 15, 15, 15, 10, 12;
-    # 0.02 s: D 6.  On 15 other start times A goes 8 -> 5 with 0.01 s (15 of 30 either way).
-    flight_lead: float = 0.01
-    # catch_decel: m/s^2, leg deceleration of the fallback landing (leg_catch); landing_moment: N*m, mean
-    # pitch moment it uses to remove H_pitch.  25 and 8 (were 15 and 12): with 15 / 12 the landings
-    # rebounded 0.3-0.8 s after touch-down and drifted off; measured offline (scripts/bench_landings.py,
-    # somersault robot), landed backflips / frontflips of 15: 11 / 5 -> 15 / 11, and on 15 other
-    # start times 13 / 3 -> 15 / 12; alone, decel 25: 12 / 8, moment 8: 15 / 7, moment 6: 14 / 8
-    catch_decel: float = 25.0
-    landing_moment: float = 8.0
-    # N*m: the removal moment from landing_late_after (s) into the landing or standing on, ramped in over
-    # moment_ramp (0: landing_moment throughout).  The landing's first seconds need the gentle 8 N*m;
-    # by then the robot stands still on both feet and takes more.  After flip A the flywheel holds
-    # ~90 kg*m^2/s: out ~8 s after touch-down with 16 from 2 s on, ~13.5 s with 8 throughout.
-    # Measured offline (scripts/bench_landings.py, 30 start times): the same 145 of 150 landed, from
-    # the same start times; landing_moment 12 / 16 throughout: 71 / 69 of the first 75 (against 72).
-    landing_moment_late: float = 16.0
-    landing_late_after: float = 2.0
-    # The own LANDING's H_pitch weight starts at landing_H_weight and rises to its ``gains`` value over
-    # landing_H_ramp (s, quintic).  A touch-down with forward speed is stopped by a backward ground
-    # force below the COM, whose moment turns the body forward unless the flywheel takes it: with the
-    # full weight from touch-down the QP held H_pitch to the removal profile instead and the COM ran
-    # on over the toes (flip A: 1.1 m/s, feet 0.14 m ahead of the COM; the COM ran 0.36 m, the
-    # flywheel then spun up to hold the body, it rebounded and fell).  With 0.1 the flywheel takes
-    # 35 -> 80 kg*m^2/s and the COM stops over the feet.  Measured offline (scripts/bench_landings.py,
-    # its 15 start times; A: --distance 1.0 --apex 1.2 --seconds 12; C: --platform 0.5 --apex 1.2),
-    # landed backflips, frontflips, A, C:
-    #   weight 1 (before):     15, 15, 0 of 5 (9 s), 5
-    #   0.1 over 1 s (default): 15, 15, 10, 15; on 15 other start times 15, 14, -, 15
-    #   0.2 / 0.05:            14 / 15, 15 / 13, 1 / 10, 9 / 10;  ramp 1.5 s: 15, 15, 8, 14
-    # Flip D (--ground-offset 0.1 --apex 1.2, with its 0.6 m forward distance): 12 of 15 (weight 1: 1),
-    # 11 of the 15 others.  (These rows were measured with tests/offline_flip.py anchoring the flight
-    # at the lift-off's onset, 10 ms before the event the graph reports.  With the graph's timing and
-    # flight_lead 0: weight 1 gave 15, 15, A 0 of 15 at 20 s, C 8, D 0; weight 0.1 15, 15, A 7, C 15,
-    # D 2; with flight_lead 0.01 (default) A 10, D 12.)
-    # Flip A then fell late (3-10 s after touch-down, while the flywheel's momentum was being removed)
-    # from 5 of its 15 start times: the simulator's feet crept on the ground (cassie_flip_sim
-    # robot_params.CONE); with that fixed 28 of 30 land.
-    landing_H_weight: float = 0.1
-    landing_H_ramp: float = 1.0
-    # kg*m^2/s: the own landing lasts until |H_pitch| is below this (and its profiles have ended).
-    # After flip A the flywheel holds ~80-90 kg*m^2/s; a landing ended by its clock with 56 left handed
-    # it to STANDING, and the robot fell (A: 10 -> 11 of 15 start times at 9 s of simulation)
-    landing_H_done: float = 2.0
-    L_min: float = 0.50               # m, shortest leg the fallback landing may use
-    # STANDING: once the COM is past the front or back of the feet on the ground (along their heading)
-    # the H_pitch weight falls linearly, to standing_H_edge_weight of its value standing_H_edge (m)
-    # beyond (0: off; see Controller._standing_H_weight).  Measured on the frontflip from 0.98 s (see
-    # there): edge weight 0.1: the COM came back over the feet in 0.3 s on 225 N*m of flywheel torque,
-    # the unloaded feet were thrown about and the robot fell; 0.3: at rest.  Falling already 3 cm
-    # inside the feet (instead of past them) took away H_pitch's damping from a robot standing near
-    # its heels with no momentum to remove (flip D from 2.1 s: shuffled, not at rest; lands with this)
-    standing_H_edge: float = 0.03
-    standing_H_edge_weight: float = 0.3
-    com_shift: float = 0.5            # fraction of the momentum-removal CoP offset taken by moving the COM
-    k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
-    # FLIGHT with a planned pelvis pitch (``phi_pitch``): track it as an output of its own (value, rate
-    # and acceleration, the QP's full dynamics finding the flywheel torque) instead of eq.
-    # (momentumTrans)'s flywheel momentum.  Measured, backflip with leg motors 3x faster and a 1.3 m
-    # apex (0.54 s flight; tests/test_offline_flight.py): touch-down 0.12 rad past -2pi at -1.8 rad/s,
-    # against 0.21 rad short at -6.8 rad/s with eq. (momentumTrans), whose rate regulation misses what
-    # the legs' motion relative to the pelvis does to it.  Needs the FLIGHT torque smoothing (below).
-    flight_pitch_output: bool = True
-    # FLIGHT after T1: the foot placement (a world leg angle for the pelvis at its final pitch) is aimed
-    # through the measured pelvis pitch, i.e. the legs ride with the pelvis until it gets there.  Aimed
-    # at the world angle from T1 on, with the body still ~0.8 rad short, the legs swung ~50 deg relative
-    # to the pelvis in 0.1 s and threw it round (measured backflip: +1.6 rad over-rotation).
-    flight_legs_on_pelvis: bool = True
-    # FLIGHT of a somersault after T1: the leg angles' weight (gains' beta_leg weight otherwise).  The foot
-    # placement outranks the pelvis pitch (weight 10): with the flywheel saturated late in the flight, a
-    # weight of 10 let the QP swing the legs to help turn the pelvis, and the feet came down 15-20 cm off
-    # their place under the COM (docs/measurements.md).  Not in a hop (no turn; it rebounded with 100).
-    somersault_beta_weight: float = 100.0
-    # LANDING after a somersault: track the planner's landing re-solve (paper §III-C) or land with the
-    # controller's own profiles (leg catch, bounded momentum removal).  After a hop the re-solve is
-    # tracked (with the own profiles the FSLIP hop bounced: a 20 ms lift-off 0.14 s after touch-down).  Measured (tests/offline_flip.py, backflip,
-    # motor speed scale 3, apex 1.3 m): tracking the re-solve fell 0.26 s after touch-down (its momentum
-    # swings through zero, -20 -> +29 -> 0 kg*m^2/s, because the FSLIP flywheel torque also pushes the
-    # point mass), the controller's own landing stood up.
-    track_landing_reference: bool = False
-    catch_slack: float = 0.1          # m/s: the landing's leg catch re-anchors on the body's sink rate (_leg_catch)
-    moment_ramp: float = 0.3          # s over which the landing's momentum-removal moment ramps in
-    per_foot_contact: bool = True     # on the ground, a foot that has come off it loses its contact rows
-    foot_lift: float = 0.008          # m above the ground at which a foot counts as off it
-    foot_land: float = 0.004          # m above the ground at which it counts as back on it
-    foot_loaded_spring: float = 8.0   # N*m shin-spring torque above which a leg counts as loaded (on the ground)
-    swing_depth: float = 0.02         # m below the ground the swing foot is aimed at
-    gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
-    jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
-    standing_gains: dict = field(default_factory=lambda: dict(STANDING_GAINS))  # overrides in STANDING
-    # domain -> w of w ||u - u_prev||^2 in the QP.  JUMPING: without it the torques chatter against the
-    # leaf springs, the contact forces the QP predicts (rigid springs) run ahead of the real ones and the
-    # feet unload 0.1 s into the push; w = 10 gives the planned lift-off time for backflip, frontflip and
-    # hop from two start states (measured offline, tests/offline_flip.py), 3 does not, 100 lifts off late.
-    # FLIGHT: with the pelvis pitch output the torques chattered and rang the leaf springs (+-0.06 rad),
-    # the legs stretched 0.08 m and touched down nearly straight.  LANDING: 3 / 10 / 30 landed a backflip
-    # from 0 / 5 / 3 of 6 start times.
-    torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
-    # after a BODY_CONTACT (a fall) the motors only damp: u = -fall_damping * (motor velocity), within
-    # the limits; the flywheel is braked the same way.  Before, a fallen robot kept being balanced on
-    # its flywheel: measured in graph runs that fell, the flywheel reached 12 800-78 600 rpm and the
-    # pelvis spun on the ground
-    fall_damping: float = 5.0         # N*m*s/rad
-
-
-#: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
-#: own parameters (motor_speed_scale, flywheel_torque), the same in simulator, planner and controller
-ROBOT_FIELDS = ("motor_speed_scale", "flywheel_torque")
-_DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing")
-
-
-def config_overrides(text: str) -> dict:
-    """ControllerConfig overrides from a JSON object (the ``controller`` parameter of ``tsc_node``,
-    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` / ``standing_gains`` entries (name ->
-    [weight, kp, kd]) are merged into the defaults; domain-keyed dicts take domain numbers or names
-    ({"JUMPING": 0.2} or {"1": 0.2}).  Raises ValueError with the reason for anything else."""
-    import json
-    try:
-        raw = json.loads(text) if text and text.strip() else {}
-    except json.JSONDecodeError as e:
-        raise ValueError(f"controller overrides are not JSON: {e}") from None
-    if not isinstance(raw, dict):
-        raise ValueError("controller overrides must be a JSON object {field: value}")
-    base = ControllerConfig()
-    fields = set(ControllerConfig.__dataclass_fields__)
-    out = {}
-    for key, val in raw.items():
-        if key in ROBOT_FIELDS:
-            raise ValueError(f"{key!r} is a robot parameter: set it for the whole robot "
-                             f"(--{key.replace('_', '-')}), not for the controller alone")
-        if key not in fields:
-            raise ValueError(f"unknown controller setting {key!r}; known: {', '.join(sorted(fields - set(ROBOT_FIELDS)))}")
-        cur = getattr(base, key)
-        if key in ("gains", "jumping_gains", "standing_gains"):
-            if not isinstance(val, dict):
-                raise ValueError(f"{key} must be an object name -> [weight, kp, kd]")
-            merged = dict(cur)
-            for name, g in val.items():
-                if name not in DEFAULT_GAINS:
-                    raise ValueError(f"{key}: unknown output {name!r}; known: {', '.join(DEFAULT_GAINS)}")
-                if not (isinstance(g, (list, tuple)) and len(g) == 3
-                        and all(isinstance(x, (int, float)) and math.isfinite(x) and x >= 0 for x in g)):
-                    raise ValueError(f"{key}.{name} must be [weight, kp, kd], three numbers >= 0")
-                merged[name] = tuple(float(x) for x in g)
-            out[key] = merged
-        elif key in _DOMAIN_KEYED:
-            if not isinstance(val, dict):
-                raise ValueError(f"{key} must be an object domain -> number")
-            d = {}
-            for dk, dv in val.items():
-                try:
-                    dom = Domain[dk] if dk in Domain.__members__ else Domain(int(dk))
-                except (ValueError, KeyError):
-                    raise ValueError(f"{key}: {dk!r} is not a domain ({', '.join(Domain.__members__)} or 0-3)") from None
-                if not (isinstance(dv, (int, float)) and math.isfinite(dv) and dv >= 0):
-                    raise ValueError(f"{key}.{dk} must be a number >= 0")
-                d[int(dom)] = float(dv)
-            if key == "cop_margin_domains" and any(v >= 0.5 for v in d.values()):
-                raise ValueError("cop_margin_domains: a margin must be below 0.5 (of the foot length)")
-            out[key] = d
-        elif isinstance(cur, bool):
-            if not isinstance(val, bool):
-                raise ValueError(f"{key} must be true or false")
-            out[key] = val
-        elif isinstance(cur, (int, float)) or cur is None:
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-                raise ValueError(f"{key} must be a finite number")
-            out[key] = float(val)
-        elif isinstance(cur, str):
-            if not isinstance(val, str):
-                raise ValueError(f"{key} must be a string")
-            allowed = {"backend": BACKENDS, "solver": tuple(SOLVERS)}.get(key)
-            if allowed is not None and val not in allowed:
-                raise ValueError(f"{key} must be one of {', '.join(allowed)}, not {val!r}")
-            out[key] = val
-        else:
-            raise ValueError(f"{key!r} cannot be set from the command line")
-    return out
+#: (ground target, index in it, reference name): the targets a JUMPING or LANDING reference sets
+_REFERENCE_TARGETS = (("H_pitch", 0, "H_pitch"), ("L", 0, "L"), ("com", 0, "x_com"), ("com", 1, "y_com"),
+                      ("pelvis", 0, "phi_roll"), ("pelvis", 1, "phi_pitch"), ("pelvis", 2, "phi_yaw"))
 
 
 def _mk(cls, name, gains, key=None, **kw):
@@ -487,8 +83,501 @@ def _ground_outputs(gains):
             _mk(O.PelvisOrientation, "pelvis", gains, axes=("roll", "pitch", "yaw"))]
 
 
+class GroundTargets:
+    """What the ground domains (STANDING, JUMPING, LANDING) share: the standing targets (the state at a
+    domain's entry blended to the standing pose, the pitch momentum's removal, the landing's leg
+    catch), the feet's contact and anchors, and the swing outputs of a foot off the ground.  In Python,
+    or compiled (``compiled``: _native.GroundTargets, ControllerConfig.compiled_targets), which gives
+    the same numbers to the bit (tests/test_tsc_native.py).
+
+    ``outputs`` (H_pitch, L, com, pelvis with the default gains) measure the state the targets start
+    from; LANDING tracks a landing reference with them.  JUMPING continues the targets STANDING began
+    (``reanchor`` only on entering STANDING or LANDING)."""
+
+    def __init__(self, dyn: Dynamics, cfg: ControllerConfig, outputs):
+        self.dyn, self.cfg = dyn, cfg
+        self.outputs = outputs
+        self.o_H, self.o_L, self.o_com, self.o_pel = outputs
+        g = cfg.gains
+        self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
+        # per-foot contact state in the ground domains, and per foot the toe, heel world positions where
+        # it stands (the Python targets'; the compiled ones keep theirs: compiled.contact, .anchor(k))
+        self.feet_contact = [True, True]
+        self.foot_anchor = None
+        # point-table rows of toe, heel of each foot
+        self._feet_rows = np.array([dyn.point_index(f"{s}_{e}") for s in SIDES for e in ("toe", "heel")])
+        # the shin springs (first and third leaf spring): q rows, stiffness, rest angle
+        self._shin_q = dyn.spring_q[[0, 2]]
+        self._shin_k, self._shin_q0 = dyn.spring_k[[0, 2]], dyn.q_spring[self._shin_q]
+        self._shin_k_list, self._shin_q0_list = self._shin_k.tolist(), self._shin_q0.tolist()
+        self.z_ground = None
+        self.stand = None                # the targets' anchors at the domain's entry (see targets)
+        self.compiled = self._des = None
+        if cfg.backend == "native" and cfg.compiled_targets:
+            self._compile()
+
+    def _compile(self):
+        """The targets in C++ (_native.GroundTargets) and the Desired objects that hold views of its
+        buffers (rewritten by every tick)."""
+        from . import _native
+        cfg, pi = self.cfg, self.dyn.point_index
+        self.compiled = _native.GroundTargets(
+            feet=self._feet_rows.tolist(), legs=[pi(f"{s}_{p}") for s in SIDES for p in ("foot", "hip")],
+            shin_q=self._shin_q.tolist(), shin_k=self._shin_k_list, shin_q0=self._shin_q0_list,
+            mass=self.dyn.mass,
+            cfg=dict(per_foot_contact=bool(cfg.per_foot_contact), foot_lift=cfg.foot_lift, foot_land=cfg.foot_land,
+                     foot_loaded_spring=cfg.foot_loaded_spring, kp=self.o_H.kp,
+                     landing_moment=cfg.landing_moment, landing_moment_late=cfg.landing_moment_late or 0.0,
+                     landing_late_after=cfg.landing_late_after, moment_ramp=cfg.moment_ramp,
+                     com_shift=cfg.com_shift, catch_decel=cfg.catch_decel, L_min=cfg.L_min,
+                     catch_slack=cfg.catch_slack, rise_time=LEG_RISE_TIME, rise_time2=LEG_RISE_TIME ** 2))
+        b = self.compiled.buffers()
+        self._des = {k: Desired(*b[k]) for k in ("H_pitch", "L", "com", "pelvis")}
+
+    def reanchor(self):
+        """Start the targets again from the state at the next tick (entering STANDING or LANDING)."""
+        self.stand = None
+
+    def H_now(self):
+        """The pitch momentum the targets' removal last saw (0 before their first tick)."""
+        if self.compiled is not None:
+            return self.compiled.H_now
+        return self.stand.get("H_now", 0.0)
+
+    def landing_done(self, t):
+        """The own landing is over: its profiles have ended (leg catch + rise, momentum removal) and
+        the momentum is out (``landing_H_done``)."""
+        return (self.stand is not None and t - self.stand["t0"] > self.stand["T_done"]
+                and abs(self.H_now()) <= self.cfg.landing_H_done)
+
+    # -------------------------------------------------------------- targets
+    def feet(self):
+        dyn = self.dyn
+        pts = [dyn.point(f"{s}_{k}")[0] for s in SIDES for k in ("toe", "heel")]
+        mid = np.mean(pts, axis=0)
+        head = [dyn.foot_frame(s)[0] for s in SIDES]
+        h = head[0] + head[1]
+        return mid, float(np.arctan2(h[1], h[0]))
+
+    def targets(self, t, landing):
+        """{output name: Desired} of the ground outputs at t; ``landing``: the domain is LANDING (the
+        COM target moves against the removal's CoP offset, the leg catch re-anchors)."""
+        dyn = self.dyn
+        if self.stand is None:
+            mid, yaw = self.feet()
+            L0, _, _, Ld0 = self.o_L.evaluate(dyn)
+            # At touch-down the leg has not started to shorten yet (the feet moved with the body until
+            # the impact); once the feet stop, it shortens at the body's sink rate: catch that.
+            Ld0 = np.minimum(Ld0, dyn.hg_lin[2] / dyn.mass)
+            if self.cfg.L_stand is None:
+                self.cfg.L_stand = float(L0[0])
+            c0, _, _, cd0 = self.o_com.evaluate(dyn)
+            p0, _, _, pd0 = self.o_pel.evaluate(dyn)
+            # start from the current value and velocity (soft catch after touch-down)
+            H0 = self.o_H.evaluate(dyn)[0]
+            self.stand = dict(t0=t, L0=L0.copy(), c0=c0.copy(), p0=p0.copy(), L1=np.array([self.cfg.L_stand]),
+                              c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
+                              Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy(), H0=H0.copy(),
+                              TH=max(self.cfg.blend_time, abs(float(H0[0])) / self.cfg.landing_moment))
+            self.stand["T_done"] = max(self.cfg.blend_time, self.stand["TH"],
+                                       leg_catch_duration(float(L0[0]), float(Ld0[0]), self.cfg.catch_decel,
+                                                          self.cfg.L_min))
+            if self.compiled is not None:
+                s, T = self.stand, self.cfg.blend_time
+                self.compiled.begin(t, float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), s["c0"], s["cd0"],
+                                    s["c1"], s["p0"], s["pd0"], s["p1"], T, T ** 2)
+        if self.compiled is not None:
+            self.compiled.tick(dyn.native, t, landing)
+            return self._des
+        s = self.stand
+        T, dt = self.cfg.blend_time, t - s["t0"]
+        H = self._momentum_removal(dt)
+        com = [np.array(x, float) for x in quintic(s["c0"], s["c1"], T, dt, s["cd0"])]
+        # That moment comes from the centre of pressure offset from the COM, dH/dt = -(x_cop - x_com) m g:
+        # the COM is moved the other way by com_shift of that offset, so that the centre of pressure
+        # stays inside the feet (with the COM over the middle of the feet the moment needs the centre
+        # of pressure near toe or heel, and a COM target that fights it makes the QP take the moment
+        # from horizontal forces instead, which drive the COM off the feet).
+        # (LANDING only: in STANDING the feedback on the momentum's wiggles would move the COM target
+        # about: 1.5 cm height drift in 5 s of standing)
+        k = self.cfg.com_shift / (self.dyn.mass * 9.81) if landing else 0.0
+        com[0][0] += k * float(H[1][0])
+        com[1][0] += k * float(H[2][0])
+        if self.foot_anchor is not None:
+            # the feet creep on the ground during a hard landing (measured: 10-20 cm over 1.5 s after a
+            # backflip, until the COM was behind the heels): the COM follows where they stand now
+            a = self.foot_anchor
+            mid = 0.25 * (a[0][:2] + a[0][3:5] + a[1][:2] + a[1][3:5])
+            com[0][:2] += mid - s["c1"][:2]
+        L_des = self._leg_catch(t, landing)
+        return {
+            "H_pitch": Desired(*H),
+            "L": Desired(*L_des),
+            "com": Desired(*com),
+            "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
+        }
+
+    def follow(self, des, smp):
+        """Set the targets a reference sample ``smp`` names (_REFERENCE_TARGETS) to its values; the
+        others keep the standing targets'."""
+        for key, idx, name in _REFERENCE_TARGETS:
+            if name in smp:
+                v, dv, ddv = smp[name]
+                d = des[key]
+                if self.compiled is None:     # (the compiled targets' buffers are rewritten every tick)
+                    d.value = np.array(d.value, float)
+                    d.d_value = np.array(d.d_value, float)
+                    d.dd_value = np.array(d.dd_value, float)
+                d.value[idx], d.d_value[idx], d.dd_value[idx] = v, dv, ddv
+
+    def _leg_catch(self, t, landing):
+        """Leg length of the landing (:func:`leg_catch` from the leg and sink rate at touch-down),
+        re-anchored on the measured state whenever the body sinks slower than the profile shortens
+        the leg by more than ``catch_slack``: the touch-down impact takes a good part of the sink
+        rate at once (measured after a backflip: 2.4 -> 1.3 m/s in 60 ms), and a leg still shortened
+        at the profile's rate pulled the feet off the ground (F = 0 at 90 ms, a bounce)."""
+        s, cfg = self.stand, self.cfg
+        tL = s.get("tL", s["t0"])
+        des = leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), t - tL, cfg.catch_decel, cfg.L_min)
+        vz = float(self.dyn.hg_lin[2]) / self.dyn.mass
+        if landing and vz < 0.0 and float(des[1][0]) < vz - cfg.catch_slack:
+            s["L0"] = self.o_L.evaluate(self.dyn)[0].copy()
+            s["Ld0"], s["tL"] = np.array([vz]), t
+            des = leg_catch(float(s["L0"][0]), vz, float(s["L1"][0]), 0.0, cfg.catch_decel, cfg.L_min)
+        return des
+
+    def _momentum_removal(self, dt):
+        """Desired (H, dH/dt, d2H/dt2) of the pitch momentum a landing brings (the flywheel's, after a
+        flip): taken out at a moment the feet can give, dH/dt = -clip(kp H, +-M), M = ``landing_moment``
+        ramped in over ``moment_ramp``, from the measured H (value = H: no error to correct).
+        A time profile (quintic from the touch-down value) was tried first: the impact took 8 of a
+        backflip's 35 kg*m^2/s and the QP spent the landing's ground forces on a 100 N*m moment to
+        put them back while the legs gave way; a landing that fell behind the profile got kp times its
+        lag asked (180 N*m), the COM was driven off the feet and the robot fell 1.8 s after landing."""
+        kp = self.o_H.kp
+        H_now = float(self.o_H.evaluate(self.dyn)[0][0])
+        self.stand["H_now"] = H_now
+        cfg = self.cfg
+        # M ramps from 0 to landing_moment over moment_ramp, later from there to landing_moment_late
+        M0, M1, t1 = 0.0, cfg.landing_moment, 0.0
+        if cfg.landing_moment_late and dt > cfg.landing_late_after:
+            M0, M1, t1 = cfg.landing_moment, cfg.landing_moment_late, cfg.landing_late_after
+        x = (dt - t1) / cfg.moment_ramp if cfg.moment_ramp > 0 else 1.0
+        M = M0 + (M1 - M0) * min(1.0, max(x, 0.0))
+        slope = (M1 - M0) / cfg.moment_ramp if x < 1.0 else 0.0
+        if kp * abs(H_now) >= M:
+            hd = -math.copysign(M, H_now)
+            hdd = -math.copysign(slope, H_now)
+        else:
+            hd, hdd = -kp * H_now, 0.0
+        return np.array([H_now]), np.array([hd]), np.array([hdd])
+
+    def standing_H_weight(self, w0):
+        """STANDING's H_pitch weight (see :meth:`Standing.H_weight`) for its standing value ``w0``."""
+        cfg = self.cfg
+        if self.compiled is not None:         # the same, compiled, on the compiled targets' feet
+            return self.compiled.standing_H_weight(self.dyn.native, w0, cfg.standing_H_edge,
+                                                   cfg.standing_H_edge_weight)
+        if cfg.standing_H_edge <= 0.0 or self.foot_anchor is None:
+            return w0
+        dyn = self.dyn
+        feet = [k for k in range(2) if self.feet_contact[k]] or [0, 1]
+        a = self.foot_anchor
+        # heading of the feet (toe - heel, horizontal, summed over both) and the feet's span along it
+        hx = sum(float(a[k][0] - a[k][3]) for k in range(2))
+        hy = sum(float(a[k][1] - a[k][4]) for k in range(2))
+        n = math.hypot(hx, hy)
+        if n < 1e-6:
+            return w0
+        hx, hy = hx / n, hy / n
+        front = max(hx * float(a[k][0]) + hy * float(a[k][1]) for k in feet)
+        back = min(hx * float(a[k][3]) + hy * float(a[k][4]) for k in feet)
+        c = dyn.com
+        xi = hx * float(c[0]) + hy * float(c[1])
+        outside = max(xi - front, back - xi)
+        f = min(1.0, max(1.0 - outside / cfg.standing_H_edge, 0.0))
+        return w0 * (cfg.standing_H_edge_weight + (1.0 - cfg.standing_H_edge_weight) * f)
+
+    # -------------------------------------------------------------- feet
+    def update_feet(self):
+        """Per-foot contact (LANDING, STANDING) from the kinematics and the shin springs: a foot whose
+        lower end is ``foot_lift`` above the ground (lowest foot point when the domain began, then
+        following the loaded feet), and whose leg's shin
+        spring carries less than ``foot_loaded_spring``, is off it; back on it below ``foot_land``.  A foot on the ground keeps its anchor (toe, heel positions, at ground height);
+        an airborne foot keeps the last one as its swing target.  The QP's flat-foot contact for a foot
+        that has unloaded and lifted is a model of something that is not there: torques computed
+        for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
+        slide 9 cm and the robot fall)."""
+        if self.compiled is not None:
+            self.compiled.update_feet(self.dyn.native)
+            return
+        dyn, cfg = self.dyn, self.cfg
+        # per foot: toe, heel (a copy: its rows are the anchors, never written); the arithmetic below
+        # in Python floats, the same operations as numpy's element-wise ones (a tick's ~10 numpy calls
+        # on 2-element arrays were most of this method's time)
+        P = dyn.P[self._feet_rows].reshape(2, 6)
+        z_low = [min(p[2], p[5]) for p in P.tolist()]               # lowest point of each foot
+        if self.foot_anchor is None:
+            self.z_ground = min(z_low)
+            self.foot_anchor = [P[0], P[1]]
+            self.feet_contact = [True, True]
+        # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
+        # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
+        tau_shin = [-k * (q - q0) for k, q, q0 in zip(self._shin_k_list, dyn.q[self._shin_q].tolist(),
+                                                      self._shin_q0_list)]
+        for k, p in enumerate(P):
+            # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
+            # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
+            # backflip landings: 1 fall in 6 start times with, 0 in 6 without)
+            h = z_low[k] - self.z_ground
+            if self.feet_contact[k]:
+                if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
+                    self.feet_contact[k] = False
+                else:
+                    self.foot_anchor[k] = p
+                    if tau_shin[k] >= cfg.foot_loaded_spring:
+                        # the ground height follows the loaded feet (first estimate, at touch-down, is
+                        # a few mm low: the impact pushes the feet into the compliant contact)
+                        self.z_ground += 0.01 * (z_low[k] - self.z_ground)
+            elif h < cfg.foot_land:
+                self.feet_contact[k] = True
+
+    def reset_feet(self):
+        """Both feet on the ground, no anchors (JUMPING: the feet leave the ground on purpose at the end
+        of the push-off; FLIGHT)."""
+        if self.compiled is not None:
+            self.compiled.reset_feet()
+        else:
+            self.foot_anchor = None
+            self.z_ground = None
+            self.feet_contact = [True, True]
+
+    def swing(self, outs, des):
+        """Add the swing output of each foot off the ground (only while the other one is on it)."""
+        g = self.compiled
+        contact = self.feet_contact if g is None else g.contact
+        if all(contact) or not any(contact):
+            return outs, des, (True, True)
+        outs, des = list(outs), list(des)
+        for k in range(2):
+            if not contact[k]:
+                a = self.foot_anchor[k].copy() if g is None else g.anchor(k)
+                # back down flat, aimed below the ground: aimed at it, the foot hovered a few mm above
+                # it (the output error balanced against the others) and the robot tipped over on
+                # one line foot
+                a[2] = a[5] = (self.z_ground if g is None else g.z_ground) - self.cfg.swing_depth
+                outs.append(self.o_swing[k])
+                des.append(Desired(a, np.zeros(6), np.zeros(6)))
+        return outs, des, tuple(contact)
+
+
+class Standing:
+    """STANDING: the ground outputs with the standing gains, held at the standing targets; the H_pitch
+    weight gives way while the COM is off the feet (:meth:`H_weight`)."""
+    domain = Domain.STANDING
+
+    def __init__(self, ground: GroundTargets, cfg: ControllerConfig):
+        self.ground = ground
+        self.outputs = _ground_outputs({**cfg.gains, **cfg.standing_gains})
+        self.H_w0 = self.outputs[0].weight       # see H_weight
+
+    def enter(self):
+        self.ground.reanchor()            # re-anchor the standing targets at the current state
+
+    def task(self, t):
+        des = self.ground.targets(t, False)
+        self.H_weight()
+        return self.outputs, [des[o.name] for o in self.outputs]
+
+    def H_weight(self):
+        """The STANDING H_pitch weight: its ``standing_gains`` value while the COM is over the span of
+        the feet on the ground (along their heading); past its front or back, falling linearly to
+        ``standing_H_edge_weight`` of it at ``standing_H_edge`` beyond and further out.
+
+        Why: with the COM off the feet the ground cannot give the moment that brings it back, and the
+        H_pitch output's momentum removal asks for the opposite moment; at full weight it costs the QP
+        more than the COM error saves, so the COM stays off the feet and the flywheel takes the
+        toppling moment.  Back over the feet, the removal needs no COM error and the weight is back.
+        The measurements: docs/tuning.md, ``standing_H_edge``."""
+        self.outputs[0].weight = self.ground.standing_H_weight(self.H_w0)
+
+
+class Jumping:
+    """JUMPING: the ground outputs with the jumping gains, tracking the planner's jumping reference
+    (eq. Y^{J/L}) over the standing targets STANDING began (names the reference lacks keep them)."""
+    domain = Domain.JUMPING
+
+    def __init__(self, ground: GroundTargets, cfg: ControllerConfig):
+        self.ground, self.cfg = ground, cfg
+        self.outputs = _ground_outputs({**cfg.gains, **cfg.jumping_gains})
+
+    def enter(self):
+        pass                              # the standing targets go on
+
+    def task(self, t, ref):
+        des = self.ground.targets(t, False)
+        self.ground.follow(des, ref.sample(t - ref.start_time))
+        return self.outputs, [des[o.name] for o in self.outputs]
+
+    def push_over(self, t, t_end):
+        """JUMPING has run past its reference without a lift-off: over after ``grace``, or after
+        ``push_grace`` while the COM still rises faster than ``push_rising`` (see the config)."""
+        late = t - t_end
+        if late <= self.cfg.grace:
+            return False
+        dyn = self.ground.dyn
+        rising = float(dyn.hg_lin[2]) / dyn.mass > self.cfg.push_rising
+        return not rising or late > self.cfg.push_grace
+
+
+class Landing:
+    """LANDING: with a landing reference (after a hop; after a somersault only with
+    ``track_landing_reference``) the ground outputs with the default gains track it over the standing
+    targets; without one, the controller's own landing: the standing targets (leg catch, momentum
+    removal, COM against the removal's CoP offset) with an H_pitch weight rising from
+    ``landing_H_weight`` over ``landing_H_ramp``."""
+    domain = Domain.LANDING
+
+    def __init__(self, ground: GroundTargets, cfg: ControllerConfig):
+        self.ground, self.cfg = ground, cfg
+        self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", cfg.gains)      # the own landing's; weight set per tick
+        self.own_outputs = [self.o_H, ground.o_L, ground.o_com, ground.o_pel]
+
+    def enter(self):
+        self.ground.reanchor()            # re-anchor the standing targets at the current state
+
+    def task(self, t, ref, t_enter):
+        tau = 0.0 if ref is None else max(0.0, t - max(t_enter, ref.start_time))
+        g = self.ground
+        des = g.targets(t, True)
+        if ref is not None:
+            g.follow(des, ref.sample(tau))
+            outs = g.outputs
+        else:
+            cfg = self.cfg
+            self.o_H.weight = float(quintic(cfg.landing_H_weight, g.o_H.weight, cfg.landing_H_ramp,
+                                            t - g.stand["t0"])[0])
+            outs = self.own_outputs
+        return outs, [des[o.name] for o in outs]
+
+    def done(self, t, ref):
+        """The landing is over: its reference has ended or, without one, the own landing
+        (:meth:`GroundTargets.landing_done`), not after blend_time: re-anchoring the standing targets
+        mid-catch throws the robot."""
+        return ref.start_time + ref.duration < t if ref is not None else self.ground.landing_done(t)
+
+
+class Flight:
+    """FLIGHT: the flywheel's momentum (eq. Y^F_1) or, with a planned pelvis pitch, that pitch; per-leg
+    length; before T1 the motor joints but the knees held at their lift-off values (and, in a
+    somersault, the pelvis axis along world y), after T1 the feet placed for the touch-down (leg
+    angle, toe pitch) and the hips' roll and yaw held (eq. Y^F_2)."""
+    domain = Domain.FLIGHT
+
+    def __init__(self, dyn: Dynamics, cfg: ControllerConfig, pitch):
+        """``pitch``: the controller's unwrapped sagittal pelvis pitch, a callable."""
+        self.dyn, self.cfg = dyn, cfg
+        g = cfg.gains
+        self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
+        self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=pitch)
+        self.o_axis = _mk(O.PelvisAxisTilt, "axis", g)
+        self._z2 = np.zeros(2)
+        self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
+        self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
+        self._beta_w0 = self.o_beta[0].weight
+        self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
+        self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
+        self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
+        self.state = None                # the lift-off posture and momentum (the first FLIGHT tick's)
+
+    def enter(self):
+        self.state = None
+
+    def task(self, t, ref, t_enter, pitch, somersault, u_prev):
+        """Outputs and desired values at t; ``pitch``: the unwrapped pelvis pitch now; ``u_prev``:
+        the last command (its flywheel torque)."""
+        dyn = self.dyn
+        tau = t - t_enter + self.cfg.flight_lead
+        if self.state is None:
+            q_pre = self.o_j_pre.evaluate(dyn)[0]
+            self.state = dict(
+                H=self.o_Hfw.evaluate(dyn)[0], L=[o.evaluate(dyn)[0] for o in self.o_Lleg],
+                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0],
+                beta=[o.evaluate(dyn)[0] for o in self.o_beta])
+        f = self.state
+        smp = ref.sample(tau) if ref is not None else {}
+        z = np.zeros(1)
+
+        def d(name, default):
+            if name in smp:
+                v, dv, ddv = smp[name]
+                return Desired(np.array([v]), np.array([dv]), np.array([ddv]))
+            return Desired(np.asarray(default, float), z, z)
+        T_f = None
+        if ref is not None:
+            T_f = ref.parameters.get("flight_time", ref.duration)
+        T1 = ref.parameters.get("T1", self.cfg.t1_fraction * T_f) if ref is not None else np.inf
+        if "H_flywheel" in smp:
+            outs, des = [self.o_Hfw], [d("H_flywheel", None)]
+        elif "phi_pitch" in smp and self.cfg.flight_pitch_output:
+            outs, des = [self.o_pitch], [d("phi_pitch", None)]
+        else:
+            outs, des = [self.o_Hfw], [Desired(np.array([self._momentum_transmission(smp, pitch)]), z, z)]
+        outs = outs + self.o_Lleg
+        des = des + [d("L", f["L"][k]) for k in range(2)]
+        if tau < T1:
+            if somersault and self.o_axis.weight > 0.0:          # see config.DEFAULT_GAINS["axis"]
+                outs.append(self.o_axis)
+                des.append(Desired(self._z2, self._z2, self._z2))
+            outs.append(self.o_j_pre)
+            des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
+        else:
+            bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
+            # the foot placement is a world leg angle for the pelvis at its final pitch theta_T; with
+            # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
+            off = np.zeros(3)
+            if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
+                if f.get("ref") is not ref:                  # final pitch of this flight reference
+                    f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
+                th_T = f["th_T"]
+                R = dyn.data.oMi[dyn.base_jid].rotation
+                w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
+                # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
+                # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
+                # against ~80 rad/s^2) and land with the feet far ahead
+                a_p = -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
+                off = np.array([pitch - th_T, w_p, a_p])
+            w_beta = self.cfg.somersault_beta_weight if somersault else self._beta_w0
+            for k in range(2):
+                b = -(bplus if bplus is not None else f["beta"][k][0])
+                self.o_beta[k].weight = w_beta
+                outs += [self.o_beta[k], self.o_toe[k]]
+                bd = d("beta_leg", [b])
+                des += [Desired(bd.value - off[0], bd.d_value - off[1], bd.dd_value - off[2]),
+                        d("toe_pitch", [0.0])]
+            outs.append(self.o_j_post)
+            des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
+        return outs, des
+
+    def _rest_inertia(self):
+        """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
+        dyn = self.dyn
+        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
+        return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
+
+    def _momentum_transmission(self, smp, pitch):
+        """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
+        with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
+        H_pitch = float(self.dyn.Ag[4] @ self.dyn.v)
+        th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
+        om_cl = om_des - self.cfg.k_theta * (pitch - th_des)
+        return H_pitch - om_cl * self._rest_inertia()
+
+
 class Controller:
-    """TSC facade: ``Controller(mjcf_str).compute(q, v, t) -> (u[11], info)``."""
+    """TSC facade: ``Controller(mjcf_str).compute(q, v, t) -> (u[11], info)``.  Switches the domain on
+    references and contact events and asks the domain's object (``standing``, ``jumping``, ``flight``,
+    ``landing``) for its outputs and desired values; the ground domains share ``ground``."""
 
     def __init__(self, mjcf: str, config: ControllerConfig | None = None, **overrides):
         cfg = config or ControllerConfig()
@@ -499,76 +588,22 @@ class Controller:
         self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
         self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale, flywheel_torque=cfg.flywheel_torque)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
-        g = cfg.gains
-        self.ground_outputs = _ground_outputs(g)
-        self.o_H, self.o_L, self.o_com, self.o_pel = self.ground_outputs
-        self.o_H_land = _mk(O.CentroidalPitchMomentum, "H_pitch", g)      # weight set per tick
-        self.own_landing_outputs = [self.o_H_land, self.o_L, self.o_com, self.o_pel]
-        self.standing_outputs = _ground_outputs({**g, **cfg.standing_gains})
-        self._standing_H_w0 = self.standing_outputs[0].weight       # see _standing_H_weight
-        self.jumping_outputs = _ground_outputs({**g, **cfg.jumping_gains})
-        self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
-        self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=lambda: self.pitch)
-        self.o_axis = _mk(O.PelvisAxisTilt, "axis", g)
-        self._z2 = np.zeros(2)
-        self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
-        self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
-        self._beta_w0 = self.o_beta[0].weight
-        self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
-        self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
-        self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
-        self.o_swing = [_mk(O.FootPoints, f"swing_{s}", g, "swing", side=s) for s in SIDES]
-        # per-foot contact state in the ground domains, and per foot the toe, heel world positions where
-        # it stands (the Python targets'; the compiled ones keep theirs: _ground.contact, .anchor(k))
-        self.feet_contact = [True, True]
-        self._foot_anchor = None
-        # point-table rows of toe, heel of each foot
-        self._feet_rows = np.array([self.dyn.point_index(f"{s}_{e}") for s in SIDES for e in ("toe", "heel")])
-        # the shin springs (first and third leaf spring): q rows, stiffness, rest angle
-        self._shin_q = self.dyn.spring_q[[0, 2]]
-        self._shin_k, self._shin_q0 = self.dyn.spring_k[[0, 2]], self.dyn.q_spring[self._shin_q]
-        self._shin_k_list, self._shin_q0_list = self._shin_k.tolist(), self._shin_q0.tolist()
-        self._z_ground = None
-        self._ground = self._ground_des = None      # the compiled targets (ControllerConfig.compiled_targets)
-        if cfg.backend == "native" and cfg.compiled_targets:
-            self._compile_targets()
+        self.ground = GroundTargets(self.dyn, cfg, _ground_outputs(cfg.gains))
+        self.standing = Standing(self.ground, cfg)
+        self.jumping = Jumping(self.ground, cfg)
+        self.landing = Landing(self.ground, cfg)
+        self.flight = Flight(self.dyn, cfg, lambda: self.pitch)
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
         self._somersault = False
         self.domain = Domain.STANDING
         self.t_enter = None
         self._pending_event = None
-        self._stand = None
-        self._flight = None
         self.u_prev = np.zeros(self.dyn.nu)
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
-
-    def _compile_targets(self):
-        """The ground targets in C++ (_native.GroundTargets) and the Desired objects that hold views of its
-        buffers (rewritten by every tick)."""
-        from . import _native
-        cfg, pi = self.cfg, self.dyn.point_index
-        self._ground = _native.GroundTargets(
-            feet=self._feet_rows.tolist(), legs=[pi(f"{s}_{p}") for s in SIDES for p in ("foot", "hip")],
-            shin_q=self._shin_q.tolist(), shin_k=self._shin_k_list, shin_q0=self._shin_q0_list,
-            mass=self.dyn.mass,
-            cfg=dict(per_foot_contact=bool(cfg.per_foot_contact), foot_lift=cfg.foot_lift, foot_land=cfg.foot_land,
-                     foot_loaded_spring=cfg.foot_loaded_spring, kp=self.o_H.kp,
-                     landing_moment=cfg.landing_moment, landing_moment_late=cfg.landing_moment_late or 0.0,
-                     landing_late_after=cfg.landing_late_after, moment_ramp=cfg.moment_ramp,
-                     com_shift=cfg.com_shift, catch_decel=cfg.catch_decel, L_min=cfg.L_min,
-                     catch_slack=cfg.catch_slack, rise_time=LEG_RISE_TIME, rise_time2=LEG_RISE_TIME ** 2))
-        b = self._ground.buffers()
-        self._ground_des = {k: Desired(*b[k]) for k in ("H_pitch", "L", "com", "pelvis")}
-
-    def _H_now(self):
-        """The pitch momentum the standing targets' removal last saw (0 before their first tick)."""
-        if self._ground is not None:
-            return self._ground.H_now
-        return self._stand.get("H_now", 0.0)
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
@@ -596,10 +631,10 @@ class Controller:
     def _enter(self, domain, t):
         self.domain = Domain(domain)
         self.t_enter = t
-        if domain in (Domain.STANDING, Domain.LANDING):
-            self._stand = None            # re-anchor the standing targets at the current state
-        if domain == Domain.FLIGHT:
-            self._flight = None
+        self._domain_object(domain).enter()
+
+    def _domain_object(self, domain):
+        return (self.standing, self.jumping, self.flight, self.landing)[int(domain)]
 
     def _switch(self, t):
         ev, self._pending_event = self._pending_event, None
@@ -617,7 +652,7 @@ class Controller:
             r = self.refs.get(Domain.JUMPING)
             if ev is not None and ev[0] == LIFT_OFF:
                 self._enter(Domain.FLIGHT, ev[1])
-            elif r is None or self._push_over(t, r.start_time + r.duration):
+            elif r is None or self.jumping.push_over(t, r.start_time + r.duration):
                 self.refs.pop(Domain.JUMPING, None)
                 self._enter(Domain.STANDING, t)
         elif d == Domain.FLIGHT:
@@ -626,368 +661,22 @@ class Controller:
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
-            r = self.refs.get(Domain.LANDING)
-            # the fallback landing ends when its own profiles have (leg catch + rise, momentum removal)
-            # and the momentum is out (landing_H_done), not after blend_time: re-anchoring the standing
-            # targets mid-catch throws the robot
-            done = (r.start_time + r.duration < t if r is not None
-                    else self._stand is not None and t - self._stand["t0"] > self._stand["T_done"]
-                    and abs(self._H_now()) <= self.cfg.landing_H_done)
-            if done:
+            if self.landing.done(t, self.refs.get(Domain.LANDING)):
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.STANDING, t)
 
-    def _push_over(self, t, t_end):
-        """JUMPING has run past its reference without a lift-off: over after ``grace``, or after
-        ``push_grace`` while the COM still rises faster than ``push_rising`` (see the config)."""
-        late = t - t_end
-        if late <= self.cfg.grace:
-            return False
-        rising = float(self.dyn.hg_lin[2]) / self.dyn.mass > self.cfg.push_rising
-        return not rising or late > self.cfg.push_grace
-
-    # -------------------------------------------------------------- outputs + desired
-    def _feet(self):
-        dyn = self.dyn
-        pts = [dyn.point(f"{s}_{k}")[0] for s in SIDES for k in ("toe", "heel")]
-        mid = np.mean(pts, axis=0)
-        head = [dyn.foot_frame(s)[0] for s in SIDES]
-        h = head[0] + head[1]
-        return mid, float(np.arctan2(h[1], h[0]))
-
-    def _standing_targets(self, t):
-        dyn = self.dyn
-        if self._stand is None:
-            mid, yaw = self._feet()
-            L0, _, _, Ld0 = self.o_L.evaluate(dyn)
-            # At touch-down the leg has not started to shorten yet (the feet moved with the body until
-            # the impact); once the feet stop, it shortens at the body's sink rate: catch that.
-            Ld0 = np.minimum(Ld0, dyn.hg_lin[2] / dyn.mass)
-            if self.cfg.L_stand is None:
-                self.cfg.L_stand = float(L0[0])
-            c0, _, _, cd0 = self.o_com.evaluate(dyn)
-            p0, _, _, pd0 = self.o_pel.evaluate(dyn)
-            # start from the current value and velocity (soft catch after touch-down)
-            H0 = self.o_H.evaluate(dyn)[0]
-            self._stand = dict(t0=t, L0=L0.copy(), c0=c0.copy(), p0=p0.copy(), L1=np.array([self.cfg.L_stand]),
-                               c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
-                               Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy(), H0=H0.copy(),
-                               TH=max(self.cfg.blend_time, abs(float(H0[0])) / self.cfg.landing_moment))
-            self._stand["T_done"] = max(self.cfg.blend_time, self._stand["TH"],
-                                        leg_catch_duration(float(L0[0]), float(Ld0[0]), self.cfg.catch_decel,
-                                                           self.cfg.L_min))
-            if self._ground is not None:
-                s, T = self._stand, self.cfg.blend_time
-                self._ground.begin(t, float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), s["c0"], s["cd0"],
-                                   s["c1"], s["p0"], s["pd0"], s["p1"], T, T ** 2)
-        if self._ground is not None:
-            self._ground.tick(dyn.native, t, self.domain == Domain.LANDING)
-            return self._ground_des
-        s = self._stand
-        T, dt = self.cfg.blend_time, t - s["t0"]
-        H = self._momentum_removal(dt)
-        com = [np.array(x, float) for x in quintic(s["c0"], s["c1"], T, dt, s["cd0"])]
-        # That moment comes from the centre of pressure offset from the COM, dH/dt = -(x_cop - x_com) m g:
-        # the COM is moved the other way by com_shift of that offset, so that the centre of pressure
-        # stays inside the feet (with the COM over the middle of the feet the moment needs the centre
-        # of pressure near toe or heel, and a COM target that fights it makes the QP take the moment
-        # from horizontal forces instead, which drive the COM off the feet).
-        # (LANDING only: in STANDING the feedback on the momentum's wiggles would move the COM target
-        # about: 1.5 cm height drift in 5 s of standing)
-        k = self.cfg.com_shift / (self.dyn.mass * 9.81) if self.domain == Domain.LANDING else 0.0
-        com[0][0] += k * float(H[1][0])
-        com[1][0] += k * float(H[2][0])
-        if self._foot_anchor is not None:
-            # the feet creep on the ground during a hard landing (measured: 10-20 cm over 1.5 s after a
-            # backflip, until the COM was behind the heels): the COM follows where they stand now
-            a = self._foot_anchor
-            mid = 0.25 * (a[0][:2] + a[0][3:5] + a[1][:2] + a[1][3:5])
-            com[0][:2] += mid - s["c1"][:2]
-        L_des = self._leg_catch(t)
-        return {
-            "H_pitch": Desired(*H),
-            "L": Desired(*L_des),
-            "com": Desired(*com),
-            "pelvis": Desired(*quintic(s["p0"], s["p1"], T, dt, s["pd0"])),
-        }
-
-    def _leg_catch(self, t):
-        """Leg length of the landing (:func:`leg_catch` from the leg and sink rate at touch-down),
-        re-anchored on the measured state whenever the body sinks slower than the profile shortens
-        the leg by more than ``catch_slack``: the touch-down impact takes a good part of the sink
-        rate at once (measured after a backflip: 2.4 -> 1.3 m/s in 60 ms), and a leg still shortened
-        at the profile's rate pulled the feet off the ground (F = 0 at 90 ms, a bounce)."""
-        s, cfg = self._stand, self.cfg
-        tL = s.get("tL", s["t0"])
-        des = leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), t - tL, cfg.catch_decel, cfg.L_min)
-        vz = float(self.dyn.hg_lin[2]) / self.dyn.mass
-        if self.domain == Domain.LANDING and vz < 0.0 and float(des[1][0]) < vz - cfg.catch_slack:
-            s["L0"] = self.o_L.evaluate(self.dyn)[0].copy()
-            s["Ld0"], s["tL"] = np.array([vz]), t
-            des = leg_catch(float(s["L0"][0]), vz, float(s["L1"][0]), 0.0, cfg.catch_decel, cfg.L_min)
-        return des
-
-    def _momentum_removal(self, dt):
-        """Desired (H, dH/dt, d2H/dt2) of the pitch momentum a landing brings (the flywheel's, after a
-        flip): taken out at a moment the feet can give, dH/dt = -clip(kp H, +-M), M = ``landing_moment``
-        ramped in over ``moment_ramp``, from the measured H (value = H: no error to correct).
-        A time profile (quintic from the touch-down value) was tried first: the impact took 8 of a
-        backflip's 35 kg*m^2/s and the QP spent the landing's ground forces on a 100 N*m moment to
-        put them back while the legs gave way; a landing that fell behind the profile got kp times its
-        lag asked (180 N*m), the COM was driven off the feet and the robot fell 1.8 s after landing."""
-        kp = self.o_H.kp
-        H_now = float(self.o_H.evaluate(self.dyn)[0][0])
-        self._stand["H_now"] = H_now
-        cfg = self.cfg
-        # M ramps from 0 to landing_moment over moment_ramp, later from there to landing_moment_late
-        M0, M1, t1 = 0.0, cfg.landing_moment, 0.0
-        if cfg.landing_moment_late and dt > cfg.landing_late_after:
-            M0, M1, t1 = cfg.landing_moment, cfg.landing_moment_late, cfg.landing_late_after
-        x = (dt - t1) / cfg.moment_ramp if cfg.moment_ramp > 0 else 1.0
-        M = M0 + (M1 - M0) * min(1.0, max(x, 0.0))
-        slope = (M1 - M0) / cfg.moment_ramp if x < 1.0 else 0.0
-        if kp * abs(H_now) >= M:
-            hd = -math.copysign(M, H_now)
-            hdd = -math.copysign(slope, H_now)
-        else:
-            hd, hdd = -kp * H_now, 0.0
-        return np.array([H_now]), np.array([hd]), np.array([hdd])
-
-    def _ground_task(self, t, ref, tau):
-        des = self._standing_targets(t)
-        if ref is not None:
-            smp = ref.sample(tau)
-
-            def put(key, idx, name):
-                if name in smp:
-                    v, dv, ddv = smp[name]
-                    d = des[key]
-                    if self._ground is None:     # (the compiled targets' buffers are rewritten every tick)
-                        d.value = np.array(d.value, float)
-                        d.d_value = np.array(d.d_value, float)
-                        d.dd_value = np.array(d.dd_value, float)
-                    d.value[idx], d.d_value[idx], d.dd_value[idx] = v, dv, ddv
-            put("H_pitch", 0, "H_pitch")
-            put("L", 0, "L")
-            put("com", 0, "x_com")
-            put("com", 1, "y_com")
-            put("pelvis", 0, "phi_roll")
-            put("pelvis", 1, "phi_pitch")
-            put("pelvis", 2, "phi_yaw")
-        if self.domain == Domain.JUMPING:
-            outs = self.jumping_outputs
-        elif self.domain == Domain.STANDING:
-            outs = self.standing_outputs
-            self._standing_H_weight()
-        elif self.domain == Domain.LANDING and ref is None:
-            outs = self.own_landing_outputs
-            cfg = self.cfg
-            self.o_H_land.weight = float(quintic(cfg.landing_H_weight, self.o_H.weight, cfg.landing_H_ramp,
-                                                 t - self._stand["t0"])[0])
-        else:
-            outs = self.ground_outputs
-        return outs, [des[o.name] for o in outs]
-
-    def _standing_H_weight(self):
-        """The STANDING H_pitch weight: its ``standing_gains`` value while the COM is over the span of
-        the feet on the ground (along their heading); past its front or back, falling linearly to
-        ``standing_H_edge_weight`` of it at ``standing_H_edge`` beyond and further out.
-
-        Measured (tests/offline_flip.py, frontflip from 0.98 s, somersault robot): after a rebound in
-        the landing (whose hop FLIGHT plan made the controller track the planner's re-solve of the
-        rebound's touch-down), STANDING began at the re-solve's end in mid-air, with the COM 3-8 cm
-        ahead of the toes moving forward at 0.25 m/s.
-        With the COM off the feet the ground cannot give the moment that brings it back: the QP held
-        the whole load on the toes (heels at f_min) and took that moment from the flywheel.  The H_pitch
-        output (weight 1) asks for the opposite moment (the momentum removal, -8 ... -16 N*m), so each
-        m/s^2 of COM acceleration back over the feet (moment m h ~ 20-30 N*m, flywheel) cost the QP
-        ~5-10x more in H_pitch error than it saved in COM error (weight 100): the COM crept back at
-        0.05-0.1 m/s (0.185 m off at 5.4 s, still 2 cm past the toe-load CoP at 7.5 s), the flywheel took
-        the toppling moment m g d all that time (H_pitch 5 -> 112 kg*m^2/s, 11 200 rpm) and the robot
-        was not at rest at 10 s.  Back over the feet, the removal needs no COM error and the weight is
-        back."""
-        o = self.standing_outputs[0]
-        w0 = self._standing_H_w0
-        cfg = self.cfg
-        if self._ground is not None:         # the same, compiled, on the compiled targets' feet
-            o.weight = self._ground.standing_H_weight(self.dyn.native, w0, cfg.standing_H_edge,
-                                                      cfg.standing_H_edge_weight)
-            return
-        if cfg.standing_H_edge <= 0.0 or self._foot_anchor is None:
-            o.weight = w0
-            return
-        dyn = self.dyn
-        feet = [k for k in range(2) if self.feet_contact[k]] or [0, 1]
-        a = self._foot_anchor
-        # heading of the feet (toe - heel, horizontal, summed over both) and the feet's span along it
-        hx = sum(float(a[k][0] - a[k][3]) for k in range(2))
-        hy = sum(float(a[k][1] - a[k][4]) for k in range(2))
-        n = math.hypot(hx, hy)
-        if n < 1e-6:
-            o.weight = w0
-            return
-        hx, hy = hx / n, hy / n
-        front = max(hx * float(a[k][0]) + hy * float(a[k][1]) for k in feet)
-        back = min(hx * float(a[k][3]) + hy * float(a[k][4]) for k in feet)
-        c = dyn.com
-        xi = hx * float(c[0]) + hy * float(c[1])
-        outside = max(xi - front, back - xi)
-        f = min(1.0, max(1.0 - outside / cfg.standing_H_edge, 0.0))
-        o.weight = w0 * (cfg.standing_H_edge_weight + (1.0 - cfg.standing_H_edge_weight) * f)
-
-    def _flight_task(self, t):
-        dyn = self.dyn
-        ref = self.refs.get(Domain.FLIGHT)
-        tau = t - self.t_enter + self.cfg.flight_lead
-        if self._flight is None:
-            q_pre = self.o_j_pre.evaluate(dyn)[0]
-            self._flight = dict(
-                H=self.o_Hfw.evaluate(dyn)[0], L=[o.evaluate(dyn)[0] for o in self.o_Lleg],
-                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0],
-                beta=[o.evaluate(dyn)[0] for o in self.o_beta])
-        f = self._flight
-        smp = ref.sample(tau) if ref is not None else {}
-        z = np.zeros(1)
-
-        def d(name, default):
-            if name in smp:
-                v, dv, ddv = smp[name]
-                return Desired(np.array([v]), np.array([dv]), np.array([ddv]))
-            return Desired(np.asarray(default, float), z, z)
-        T_f = None
-        if ref is not None:
-            T_f = ref.parameters.get("flight_time", ref.duration)
-        T1 = ref.parameters.get("T1", self.cfg.t1_fraction * T_f) if ref is not None else np.inf
-        if "H_flywheel" in smp:
-            outs, des = [self.o_Hfw], [d("H_flywheel", None)]
-        elif "phi_pitch" in smp and self.cfg.flight_pitch_output:
-            outs, des = [self.o_pitch], [d("phi_pitch", None)]
-        else:
-            outs, des = [self.o_Hfw], [Desired(np.array([self._momentum_transmission(smp)]), z, z)]
-        outs = outs + self.o_Lleg
-        des = des + [d("L", f["L"][k]) for k in range(2)]
-        if tau < T1:
-            if self._somersault and self.o_axis.weight > 0.0:          # see DEFAULT_GAINS["axis"]
-                outs.append(self.o_axis)
-                des.append(Desired(self._z2, self._z2, self._z2))
-            outs.append(self.o_j_pre)
-            des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
-        else:
-            bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
-            # the foot placement is a world leg angle for the pelvis at its final pitch theta_T; with
-            # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
-            off = np.zeros(3)
-            if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
-                if f.get("ref") is not ref:                  # final pitch of this flight reference
-                    f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
-                th_T = f["th_T"]
-                R = dyn.data.oMi[dyn.base_jid].rotation
-                w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
-                # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
-                # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
-                # against ~80 rad/s^2) and land with the feet far ahead
-                a_p = -float(self.u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
-                off = np.array([self.pitch - th_T, w_p, a_p])
-            w_beta = self.cfg.somersault_beta_weight if self._somersault else self._beta_w0
-            for k in range(2):
-                b = -(bplus if bplus is not None else f["beta"][k][0])
-                self.o_beta[k].weight = w_beta
-                outs += [self.o_beta[k], self.o_toe[k]]
-                bd = d("beta_leg", [b])
-                des += [Desired(bd.value - off[0], bd.d_value - off[1], bd.dd_value - off[2]),
-                        d("toe_pitch", [0.0])]
-            outs.append(self.o_j_post)
-            des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
-        return outs, des
-
-    def _rest_inertia(self):
-        """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
-        dyn = self.dyn
-        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
-        return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
-
-    def _momentum_transmission(self, smp):
-        """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
-        with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
-        H_pitch = float(self.dyn.Ag[4] @ self.dyn.v)
-        th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
-        om_cl = om_des - self.cfg.k_theta * (self.pitch - th_des)
-        return H_pitch - om_cl * self._rest_inertia()
-
-    def _update_feet(self):
-        """Per-foot contact (LANDING, STANDING) from the kinematics and the shin springs: a foot whose
-        lower end is ``foot_lift`` above the ground (lowest foot point when the domain began, then
-        following the loaded feet), and whose leg's shin
-        spring carries less than ``foot_loaded_spring``, is off it; back on it below ``foot_land``.  A foot on the ground keeps its anchor (toe, heel positions, at ground height);
-        an airborne foot keeps the last one as its swing target.  The QP's flat-foot contact for a foot
-        that has unloaded and lifted is a model of something that is not there: torques computed
-        for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
-        slide 9 cm and the robot fall)."""
-        if self._ground is not None:
-            self._ground.update_feet(self.dyn.native)
-            return
-        dyn, cfg = self.dyn, self.cfg
-        # per foot: toe, heel (a copy: its rows are the anchors, never written); the arithmetic below
-        # in Python floats, the same operations as numpy's element-wise ones (a tick's ~10 numpy calls
-        # on 2-element arrays were most of this method's time)
-        P = dyn.P[self._feet_rows].reshape(2, 6)
-        z_low = [min(p[2], p[5]) for p in P.tolist()]               # lowest point of each foot
-        if self._foot_anchor is None:
-            self._z_ground = min(z_low)
-            self._foot_anchor = [P[0], P[1]]
-            self.feet_contact = [True, True]
-        # shin leaf-spring torque of each leg (about 29 N*m standing): a leg that still carries load is
-        # on the ground whatever the kinematics say (a crouched foot rolled onto its toe carries it)
-        tau_shin = [-k * (q - q0) for k, q, q0 in zip(self._shin_k_list, dyn.q[self._shin_q].tolist(),
-                                                      self._shin_q0_list)]
-        for k, p in enumerate(P):
-            # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
-            # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
-            # backflip landings: 1 fall in 6 start times with, 0 in 6 without)
-            h = z_low[k] - self._z_ground
-            if self.feet_contact[k]:
-                if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
-                    self.feet_contact[k] = False
-                else:
-                    self._foot_anchor[k] = p
-                    if tau_shin[k] >= cfg.foot_loaded_spring:
-                        # the ground height follows the loaded feet (first estimate, at touch-down, is
-                        # a few mm low: the impact pushes the feet into the compliant contact)
-                        self._z_ground += 0.01 * (z_low[k] - self._z_ground)
-            elif h < cfg.foot_land:
-                self.feet_contact[k] = True
-
-    def _swing_task(self, outs, des):
-        """Add the swing output of each foot off the ground (only while the other one is on it)."""
-        g = self._ground
-        contact = self.feet_contact if g is None else g.contact
-        if all(contact) or not any(contact):
-            return outs, des, (True, True)
-        outs, des = list(outs), list(des)
-        for k in range(2):
-            if not contact[k]:
-                a = self._foot_anchor[k].copy() if g is None else g.anchor(k)
-                # back down flat, aimed below the ground: aimed at it, the foot hovered a few mm above
-                # it (the output error balanced against the others) and the robot tipped over on
-                # one line foot
-                a[2] = a[5] = (self._z_ground if g is None else g.z_ground) - self.cfg.swing_depth
-                outs.append(self.o_swing[k])
-                des.append(Desired(a, np.zeros(6), np.zeros(6)))
-        return outs, des, tuple(contact)
-
     def _task(self, t):
+        """(on the ground, outputs, desired values) of the domain at t."""
         dom = self.domain
         if dom == Domain.STANDING:
-            return True, *self._ground_task(t, None, 0.0)
+            return True, *self.standing.task(t)
         if dom == Domain.JUMPING:
-            r = self.refs[Domain.JUMPING]
-            return True, *self._ground_task(t, r, t - r.start_time)
+            return True, *self.jumping.task(t, self.refs[Domain.JUMPING])
         if dom == Domain.LANDING:
-            r = self.refs.get(Domain.LANDING)
-            tau = 0.0 if r is None else max(0.0, t - max(self.t_enter, r.start_time))
-            return True, *self._ground_task(t, r, tau)
-        return False, *self._flight_task(t)
+            return True, *self.landing.task(t, self.refs.get(Domain.LANDING), self.t_enter)
+        return False, *self.flight.task(t, self.refs.get(Domain.FLIGHT), self.t_enter, self.pitch,
+                                        self._somersault, self.u_prev)
 
     def _update_pitch(self):
         """Unwrapped sagittal pitch of the pelvis: the angle of its x axis in the world x-z plane,
@@ -1030,17 +719,13 @@ class Controller:
         if self.t_enter is None:
             self.t_enter = t
         if self.domain in (Domain.LANDING, Domain.STANDING):
-            self._update_feet()
-        elif self._ground is not None:     # JUMPING: the feet leave the ground on purpose at the end of the push-off
-            self._ground.reset_feet()
-        else:
-            self._foot_anchor = None
-            self._z_ground = None
-            self.feet_contact = [True, True]
+            self.ground.update_feet()
+        else:                  # FLIGHT; JUMPING: the feet leave the ground on purpose at the end of the push-off
+            self.ground.reset_feet()
         ground, outs, des = self._task(t)
         feet = (True, True)
         if ground:
-            outs, des, feet = self._swing_task(outs, des)
+            outs, des, feet = self.ground.swing(outs, des)
         lb, ub = self.limits.bounds(v[self.dyn.motor_v])
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)

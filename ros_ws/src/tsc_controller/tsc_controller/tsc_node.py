@@ -31,8 +31,10 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from .domains import Controller, SampledReference, config_overrides
+from .config import config_overrides
+from .domains import Controller
 from .dynamics import MOTOR_NAMES
+from .reference import SampledReference
 
 DT_NS = 500_000
 #: topics that wake the node: all but /odom, which comes before /joint_states
@@ -83,22 +85,14 @@ class TscNode:
         self.cpu0 = None            # (process, main thread) CPU time at the first tick
 
     def _on_reference(self, msg):
-        n_t, n_out = len(msg.t), len(msg.output_names)
-        shape = (n_t, n_out)
         try:
-            ref = SampledReference(
-                domain=msg.domain, plan_id=msg.plan_id, start_time=stamp_to_ns(msg.start_time) * 1e-9,
-                t=np.asarray(msg.t), names=list(msg.output_names),
-                value=np.asarray(msg.value).reshape(shape),
-                d_value=np.asarray(msg.d_value).reshape(shape),
-                dd_value=np.asarray(msg.dd_value).reshape(shape),
-                parameters=dict(zip(msg.parameter_names, msg.parameter_values)))
-        except ValueError as e:
+            ref = SampledReference.from_msg(msg)
+        except ValueError as e:          # samples not len(t) x len(output_names), an unknown domain
             self.node.get_logger().error(f'malformed /fslip/reference ignored: {e}')
             return
         self.controller.set_reference(ref)
         self.node.get_logger().info(f'reference: plan {msg.plan_id} domain {msg.domain}, '
-                                    f'{n_t} samples from t={ref.start_time:.3f} s')
+                                    f'{len(msg.t)} samples from t={ref.start_time:.3f} s')
 
     def _state(self, js_buf, odom_buf):
         """(q, v) from the serialized /joint_states and /odom: compiled from the bytes while the

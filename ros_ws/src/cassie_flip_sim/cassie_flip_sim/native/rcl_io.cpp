@@ -275,7 +275,8 @@ class CommandWait : public Waiter {
 // sim_node's compiled stepping loop: lockstep steps k, k+1, ... as SimNode.run's loop takes them
 // (its module doc), each one: publish the state (/clock when due, /odom, /joint_states, from the
 // serialized templates), wait for the command of step k (CommandWait::wait), step MuJoCo with it
-// (the Stepper's C table), run the contact detector (contacts.ContactDetector's copy).  run()
+// (the Stepper's C table), run the contact detector (contacts.ContactDetector's copy), and every
+// wrench_every-th step publish the feet's wrenches of state k stamped k dt (set_wrenches).  run()
 // returns to Python (with the GIL released in between, no Python runs) whenever anything is not
 // routine:
 //   PRE_STEP  before a step whose pre-step checks are not empty (a contact event of the last step
@@ -333,6 +334,26 @@ class SimLoop {
       reason = loop(k, k_end);
     }
     return py::make_tuple(reason, k);
+  }
+
+  // The feet's wrench topics: their publishers (rclpy's pointers), serialized WrenchStamped templates
+  // and float64 views of their 6 numbers (force, torque), published for every step k with
+  // k % every == 0 (every 0: none), as SimNode._publish_wrenches does.
+  void set_wrenches(std::uintptr_t left_pub, std::uintptr_t right_pub, py::buffer left_buf, py::buffer right_buf,
+                    py::array left, py::array right, std::int64_t every) {
+    if (every < 0) throw std::invalid_argument("SimLoop.set_wrenches: every >= 0");
+    wrench_pub_[0] = from_address<rcl_publisher_t>(left_pub);
+    wrench_pub_[1] = from_address<rcl_publisher_t>(right_pub);
+    int i = 0;
+    for (auto *b : {&left_buf, &right_buf}) {
+      wrench_buf_[i].reset(new py::buffer_info(b->request(true)));
+      if (wrench_buf_[i]->size * wrench_buf_[i]->itemsize < 12) throw std::invalid_argument("SimLoop: message too short");
+      ++i;
+    }
+    wrench_field_[0] = field(left, 6, "left wrench");
+    wrench_field_[1] = field(right, 6, "right wrench");
+    wrench_refs_ = py::make_tuple(left_buf, right_buf, left, right);
+    wrench_every_ = every;
   }
 
   // ContactDetector.state() <-> (in_contact, zero_run, onset_step, onset_time, flight_steps,
@@ -411,13 +432,23 @@ class SimLoop {
         return WAIT;
       }
       std::memcpy(command_, u_in_, 8 * nu_);
-      // Simulator.step
+      // Simulator.step (with the wrenches of state k when they are due)
+      const bool wrench_due = wrench_every_ > 0 && k % wrench_every_ == 0;
       const double t = api_->time(s);
-      api_->step(s, command_, u_applied_, clip ? 1 : 0, forces_);
+      api_->step(s, command_, u_applied_, clip ? 1 : 0, forces_, wrench_due ? wrench_ : nullptr);
       if (cfs_detector_update(det_, sim_step, t, forces_[0], forces_[1], &event_)) has_event_ = true;
       ++sim_step;
       ++steps_;
-      spent_.simulate += secs(Clock::now() - t2);
+      const auto t3 = Clock::now();
+      spent_.simulate += secs(t3 - t2);
+      if (wrench_due) {              // SimNode._publish_wrenches
+        for (int f = 0; f < 2; ++f) {
+          std::memcpy(wrench_field_[f], wrench_ + 6 * f, 6 * sizeof(double));
+          publish_raw(wrench_pub_[f], static_cast<std::uint8_t *>(wrench_buf_[f]->ptr),
+                      wrench_buf_[f]->size * wrench_buf_[f]->itemsize, ns);
+        }
+        spent_.publish += secs(Clock::now() - t3);
+      }
       ++k;
       if (k_end >= 0 && k >= k_end) return END;
       if (spin_every_ > 0 && k % spin_every_ == 0) return SPIN;
@@ -449,6 +480,13 @@ class SimLoop {
   double *command_, *u_in_;
   std::size_t nu_ = 0;
   CfsDetector det_;
+  // the feet's wrenches (set_wrenches): publishers, templates, their number fields, the step's values
+  rcl_publisher_t *wrench_pub_[2] = {nullptr, nullptr};
+  std::unique_ptr<py::buffer_info> wrench_buf_[2];
+  unsigned char *wrench_field_[2] = {nullptr, nullptr};
+  py::tuple wrench_refs_;
+  std::int64_t wrench_every_ = 0;
+  double wrench_[12] = {};
   CfsEvent event_{};
   bool has_event_ = false;
   double forces_[2] = {0.0, 0.0};
@@ -576,6 +614,8 @@ PYBIND11_MODULE(_rcl_io, mod) {
          py::arg("twist"), py::arg("command"), py::arg("u_in"), py::arg("u_applied"), py::arg("dt_ns"),
          py::arg("clock_every"), py::arg("resend_ns"), py::arg("spin_every"))
       .def("run", &SimLoop::run, py::arg("k"), py::arg("k_end"))
+      .def("set_wrenches", &SimLoop::set_wrenches, py::arg("left_publisher"), py::arg("right_publisher"),
+           py::arg("left"), py::arg("right"), py::arg("left_wrench"), py::arg("right_wrench"), py::arg("every"))
       .def_property("detector", &SimLoop::detector, &SimLoop::set_detector)
       .def_property_readonly("event", &SimLoop::event)
       .def_property_readonly("forces", &SimLoop::forces)

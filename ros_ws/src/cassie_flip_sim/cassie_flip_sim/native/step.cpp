@@ -4,8 +4,9 @@
 // in the node graph (scripts/bench_graph.py), where it shares one CPU with the controller.
 //
 // Same arithmetic, in the same order, as the numpy reference (Simulator(backend="python")): the
-// torque clip of motor_limits.MotorLimits.clip, contacts.FootForces, Simulator's accessors.  Built
-// with -ffp-contract=off (no fused multiply-adds numpy does not make).
+// torque clip of motor_limits.MotorLimits.clip, contacts.FootForces, foot_wrench.FootWrenches (the
+// same MuJoCo functions in the same order), Simulator's accessors.  Built with -ffp-contract=off (no
+// fused multiply-adds numpy does not make).
 //
 // Stepper._api() hands the same step, state and body-contact test to sim_node's compiled stepping
 // loop (_rcl_io.SimLoop) as a C table of function pointers (stepper_api.h); Detector is that loop's
@@ -51,42 +52,54 @@ public:
   /// Python objects must outlive this).  Motors: dof and actuator ids, torque limits, 1/no-load speed
   /// (0: no speed limit); foot_side: per geom 0 (left foot), 1 (right foot) or -1; joint table of
   /// Simulator.joint_names: qpos (-1: part of a ball) and qvel addresses, per ball joint its qpos
-  /// address and its first entry; body_geom: per geom 1 for a body other than the feet.
+  /// address and its first entry; body_geom: per geom 1 for a body other than the feet; foot_body:
+  /// the left and right foot bodies (whose frames the wrenches are in).
   Stepper(std::uintptr_t model, std::uintptr_t data, IArr motor_dof, IArr act_ids, DArr torque_limit,
           DArr inv_w0, IArr foot_side, IArr jq, IArr jv, IArr ball_qadr, IArr ball_entry,
-          long pelvis, IArr body_geom)
+          long pelvis, IArr body_geom, IArr foot_body)
   : m_(reinterpret_cast<const mjModel *>(model)), d_(reinterpret_cast<mjData *>(data)),
     dof_(ivec(motor_dof)), act_(ivec(act_ids)), lim_(dvec(torque_limit)), inv_w0_(dvec(inv_w0)),
     side_(ivec(foot_side)), jq_(ivec(jq)), jv_(ivec(jv)), bq_(ivec(ball_qadr)),
-    be_(ivec(ball_entry)), pelvis_(pelvis), body_(ivec(body_geom))
+    be_(ivec(ball_entry)), pelvis_(pelvis), body_(ivec(body_geom)), foot_body_(ivec(foot_body))
   {
     const size_t nu = dof_.size();
     if (act_.size() != nu || lim_.size() != nu || inv_w0_.size() != nu)
       throw std::invalid_argument("Stepper: motor tables of different sizes");
     if (long(side_.size()) != m_->ngeom || long(body_.size()) != m_->ngeom)
       throw std::invalid_argument("Stepper: foot_side and body_geom need one entry per geom");
-    bool ok = jq_.size() == jv_.size() && bq_.size() == be_.size() && pelvis_ >= 0 && pelvis_ < m_->nbody;
+    bool ok = jq_.size() == jv_.size() && bq_.size() == be_.size() && pelvis_ >= 0 && pelvis_ < m_->nbody &&
+              foot_body_.size() == 2;
+    for (size_t k = 0; ok && k < foot_body_.size(); ++k) ok = foot_body_[k] >= 0 && foot_body_[k] < m_->nbody;
     for (size_t i = 0; ok && i < nu; ++i) ok = dof_[i] >= 0 && dof_[i] < m_->nv && act_[i] >= 0 && act_[i] < m_->nu;
     for (size_t i = 0; ok && i < jq_.size(); ++i) ok = jq_[i] < m_->nq && jv_[i] >= 0 && jv_[i] < m_->nv;
     for (size_t b = 0; ok && b < bq_.size(); ++b)
       ok = bq_[b] >= 0 && bq_[b] + 4 <= m_->nq && be_[b] >= 0 && be_[b] + 3 <= long(jv_.size());
-    if (!ok) throw std::invalid_argument("Stepper: motor or joint table, or pelvis, out of the model's range");
+    if (!ok) throw std::invalid_argument("Stepper: motor or joint table, pelvis or feet, out of the model's range");
   }
 
   /// One step with joint-side torques u: clipped to the torque-speed envelope (when clip), written
   /// to ctrl, mj_step2, the feet's normal forces summed over their contacts (mj_contactForce), then
-  /// mj_step1 of the new state.  u_out gets the applied torques.  Returns (left, right) forces.
-  py::tuple step(DArr u, py::array u_out, bool clip)
+  /// mj_step1 of the new state.  u_out gets the applied torques; wrench (12 float64, or None), when
+  /// given, the feet's wrenches of the state stepped from (foot_wrench.FootWrenches, left then
+  /// right).  Returns (left, right) forces.
+  py::tuple step(DArr u, py::array u_out, bool clip, py::object wrench)
   {
     const long n = long(dof_.size());
     if (u.size() != n) throw std::invalid_argument("Stepper.step: u of the wrong size");
-    double out[2];
-    step_raw(u.data(), out_ptr(u_out, n, "u_out"), clip, out);
+    double out[2], w[12];
+    unsigned char * wo = nullptr;
+    if (!wrench.is_none()) {
+      py::array wa = wrench.cast<py::array>();
+      wo = out_ptr(wa, 12, "wrench");
+    }
+    step_raw(u.data(), out_ptr(u_out, n, "u_out"), clip, out, wo ? w : nullptr);
+    if (wo) std::memcpy(wo, w, sizeof w);
     return py::make_tuple(out[0], out[1]);
   }
 
-  /// step on raw arrays (u: n motors; uo: n float64, maybe unaligned; out: the feet's forces)
-  void step_raw(const double * ui, unsigned char * uo, bool clip, double out[2])
+  /// step on raw arrays (u: n motors; uo: n float64, maybe unaligned; out: the feet's forces;
+  /// wrench: nullptr, or 12 doubles for the feet's wrenches)
+  void step_raw(const double * ui, unsigned char * uo, bool clip, double out[2], double * wrench)
   {
     const long n = long(dof_.size());
     for (long i = 0; i < n; ++i) {
@@ -112,7 +125,39 @@ public:
       mj_contactForce(m_, d_, i, f);
       out[s] += f[0];
     }
+    if (wrench) foot_wrenches(wrench);
     mj_step1(m_, d_);
+  }
+
+  /// foot_wrench.FootWrenches on the data as it is (between mj_step2 and mj_step1): per foot (left,
+  /// right) force and moment about its origin, in its frame, into w[0..6), w[6..12)
+  void foot_wrenches(double * w) const
+  {
+    mjtNum sum[2][6] = {}, f6[6], F[3], T[3], r[3], rxF[3];
+    for (int i = 0; i < d_->ncon; ++i) {
+      const mjContact & c = d_->contact[i];
+      long s = side_[c.geom[1]];                 // the normal points from geom1 to geom2: force on geom2
+      bool flip = false;
+      if (s < 0) {
+        s = side_[c.geom[0]];
+        flip = true;
+      }
+      if (s < 0 || c.efc_address < 0) continue;
+      mj_contactForce(m_, d_, i, f6);
+      mju_mulMatTVec3(F, c.frame, f6);
+      mju_mulMatTVec3(T, c.frame, f6 + 3);
+      if (flip) {
+        mju_scl3(F, F, -1.0);
+        mju_scl3(T, T, -1.0);
+      }
+      mju_sub3(r, c.pos, d_->xpos + 3 * foot_body_[s]);
+      mju_cross(rxF, r, F);
+      mju_addTo3(sum[s], F);
+      mju_addTo3(sum[s] + 3, rxF);
+      mju_addTo3(sum[s] + 3, T);
+    }
+    for (int k = 0; k < 2; ++k)
+      for (int a = 0; a < 6; a += 3) mju_mulMatTVec3(w + 6 * k + a, d_->xmat + 9 * foot_body_[k], sum[k] + a);
   }
 
   /// The state as sim_node publishes it: per joint_names entry the position (hinge: qpos; ball: its
@@ -165,8 +210,8 @@ public:
     api_.version = CFS_STEPPER_API_VERSION;
     api_.self = this;
     api_.time = [](void * s) -> double { return static_cast<Stepper *>(s)->d_->time; };
-    api_.step = [](void * s, const double * u, unsigned char * uo, int clip, double f[2]) {
-      static_cast<Stepper *>(s)->step_raw(u, uo, clip != 0, f);
+    api_.step = [](void * s, const double * u, unsigned char * uo, int clip, double f[2], double * w) {
+      static_cast<Stepper *>(s)->step_raw(u, uo, clip != 0, f, w);
     };
     api_.state = [](void * s, unsigned char * p, unsigned char * v, unsigned char * e, unsigned char * ps,
                     unsigned char * tw) { static_cast<Stepper *>(s)->state_raw(p, v, e, ps, tw); };
@@ -192,6 +237,7 @@ private:
   std::vector<long> jq_, jv_, bq_, be_;
   long pelvis_;
   std::vector<long> body_;
+  std::vector<long> foot_body_;
 };
 
 PYBIND11_MODULE(_native, mod)
@@ -199,11 +245,12 @@ PYBIND11_MODULE(_native, mod)
   mod.doc() = "cassie_flip_sim's per-step work on the MuJoCo C API (see native/step.cpp)";
   py::class_<Stepper>(mod, "Stepper")
     .def(py::init<std::uintptr_t, std::uintptr_t, IArr, IArr, DArr, DArr, IArr, IArr, IArr, IArr, IArr,
-                  long, IArr>(),
+                  long, IArr, IArr>(),
          py::arg("model"), py::arg("data"), py::arg("motor_dof"), py::arg("act_ids"), py::arg("torque_limit"),
          py::arg("inv_w0"), py::arg("foot_side"), py::arg("jq"), py::arg("jv"),
-         py::arg("ball_qadr"), py::arg("ball_entry"), py::arg("pelvis"), py::arg("body_geom"))
-    .def("step", &Stepper::step, py::arg("u"), py::arg("u_out"), py::arg("clip"))
+         py::arg("ball_qadr"), py::arg("ball_entry"), py::arg("pelvis"), py::arg("body_geom"),
+         py::arg("foot_body"))
+    .def("step", &Stepper::step, py::arg("u"), py::arg("u_out"), py::arg("clip"), py::arg("wrench") = py::none())
     .def("state", &Stepper::state, py::arg("pos"), py::arg("vel"), py::arg("eff"), py::arg("pose"), py::arg("twist"))
     .def("body_contact", &Stepper::body_contact)
     .def("_api", [](py::object self) { return self.cast<Stepper &>().api(self); },

@@ -10,7 +10,7 @@
 #include <cstdint>
 
 #define CFS_STEPPER_API_CAPSULE "cassie_flip_sim._native.StepperApi"
-#define CFS_STEPPER_API_VERSION 1
+#define CFS_STEPPER_API_VERSION 2
 
 extern "C" {
 
@@ -20,8 +20,9 @@ struct CfsStepperApi {
   // the MuJoCo time of the state (mjData.time)
   double (*time)(void *self);
   // Stepper.step: u (n motors) clipped when clip, applied; u_out (n float64, maybe unaligned) gets
-  // the applied torques, forces the feet's (left, right) normal forces of the step
-  void (*step)(void *self, const double *u, unsigned char *u_out, int clip, double forces[2]);
+  // the applied torques, forces the feet's (left, right) normal forces of the step, wrench (nullptr:
+  // not computed; else 12 doubles) the feet's wrenches of the state stepped from (foot_wrench.py)
+  void (*step)(void *self, const double *u, unsigned char *u_out, int clip, double forces[2], double *wrench);
   // Stepper.state into float64 fields (maybe unaligned) of the sizes Stepper.state checks
   void (*state)(void *self, unsigned char *pos, unsigned char *vel, unsigned char *eff, unsigned char *pose,
                 unsigned char *twist);

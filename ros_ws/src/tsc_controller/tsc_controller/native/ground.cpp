@@ -1,8 +1,8 @@
 // Compiled targets of the ground domains (tsc_controller._native.GroundTargets): what
-// domains.Controller computes per tick in STANDING, LANDING and JUMPING before the QP, in one call —
-// the feet's contact and anchors (_update_feet), the pitch momentum's removal (_momentum_removal),
+// domains.GroundTargets computes per tick in STANDING, LANDING and JUMPING before the QP, in one call —
+// the feet's contact and anchors (update_feet), the pitch momentum's removal (_momentum_removal),
 // the leg catch (_leg_catch, leg_catch) and the quintic blends of COM and pelvis from the state at
-// the domain's entry to the standing targets (_standing_targets, quintic).  The same operations in
+// the domain's entry to the standing targets (targets, quintic).  The same operations in
 // the same order as those Python floats (built with -ffp-contract=off): the same numbers, checked on
 // whole offline flips against the Python path (tests/test_tsc_native.py).
 //
@@ -31,7 +31,7 @@ namespace
   inline double py_max(double a, double b) { return b > a ? b : a; }
   inline double py_min(double a, double b) { return b < a ? b : a; }
 
-  /// domains.quintic's coefficients at time s over T (T2 = T ** 2 as Python computes it).
+  /// profiles.quintic's coefficients at time s over T (T2 = T ** 2 as Python computes it).
   struct Quintic
   {
     bool done = false;               // T <= 0 or s >= T: the end value, zero rates
@@ -122,7 +122,7 @@ public:
     buf_.fill(0.0);
   }
 
-  // ------------------------------------------------------------------ feet (_update_feet)
+  // ------------------------------------------------------------------ feet (update_feet)
   void reset_feet() { anchored_ = false; contact_ = {true, true}; }
 
   void update_feet(const TickTerms & tick)
@@ -163,7 +163,7 @@ public:
     }
   }
 
-  /// Controller._standing_H_weight: the STANDING H_pitch weight w0 while the COM is over the span
+  /// GroundTargets.standing_H_weight: the STANDING H_pitch weight w0 while the COM is over the span
   /// (along the feet's heading) of the feet on the ground, falling linearly past its front or back to
   /// edge_weight of w0 at `edge` beyond; w0 before the feet are anchored or with edge <= 0.
   double standing_H_weight(const TickTerms & tick, double w0, double edge, double edge_weight) const
@@ -211,7 +211,7 @@ public:
   }
 
   // ------------------------------------------------------------------ standing targets
-  /// The anchors _standing_targets takes at the domain's entry (blend over T, T2 = T ** 2).
+  /// The anchors GroundTargets.targets takes at the domain's entry (blend over T, T2 = T ** 2).
   void begin(double t0, double L0, double Ld0, double L1, const DArr & c0, const DArr & cd0, const DArr & c1,
              const DArr & p0, const DArr & pd0, const DArr & p1, double T, double T2)
   {
