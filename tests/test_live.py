@@ -2,6 +2,7 @@
 it reads, and the Foxglove WebSocket server as a client sees it — CDR channels with ros2msg
 schemas, the bytes forwarded untouched, latched messages for a client that subscribes late."""
 import argparse
+import re
 import socket
 import subprocess
 import sys
@@ -224,6 +225,18 @@ def test_the_layout_shows_fields_the_recorded_topics_have():
     assert sorted(panels(doc["layout"])) == sorted(config)                  # every panel placed, once
     plotted = [s["value"] for k, c in config.items() if k.split("!")[0] in ("Plot", "StateTransitions")
                for s in c["paths"]]
+    # a user script's output: its inputs are recorded topics with the fields it reads
+    scripted = [p for p in plotted if p.startswith("/foxglove_script/")]
+    scripts = {re.search(r'output = "([^"]+)"', n["sourceCode"]).group(1): n["sourceCode"]
+               for n in doc["userNodes"].values()}
+    for p in scripted:
+        topic, field = p.split(".", 1)
+        code = scripts[topic]
+        assert re.search(rf"\b{field}\b", code.split("return", 1)[1]), (p, "not in the script's output")
+        for inp in re.search(r"inputs = \[([^\]]*)\]", code).group(1).replace('"', "").split(","):
+            for axis in "xyz":
+                assert resolve(f"{inp.strip()}.wrench.force.{axis}")[1] in NUMERIC
+    plotted = [p for p in plotted if p not in scripted]
     assert plotted and all(resolve(p)[0] == "base" and resolve(p)[1] in NUMERIC for p in plotted), plotted
     # the indexed entries are the flywheel's: /joint_states' order is the simulator's, /motor_command's
     # the motor order of docs/architecture.md
@@ -232,5 +245,5 @@ def test_the_layout_shows_fields_the_recorded_topics_have():
     assert "/motor_command.effort[10]" in plotted and MOTOR_NAMES[10] == "flywheel"
     assert resolve(config["RawMessages!plan"]["topicPath"]) == ("msg", "flip_msgs/msg/FlipReference")
     three_d = config["3D!robot"]
-    assert list(three_d["topics"]) == ["/robot_description"] and resolve("/robot_description")
+    assert all(resolve(t)[0] == "msg" for t in three_d["topics"]) and "/robot_description" in three_d["topics"]
     assert (three_d["followTf"], three_d["layers"]["grid"]["frameId"]) == ("pelvis", "world")   # /odom's frames
