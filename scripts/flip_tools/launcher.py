@@ -7,6 +7,8 @@
   counts), never through sleeps; fails fast if a watched process exits meanwhile.
 - Launcher.stop()/stop_all(): SIGINT, then SIGTERM, then SIGKILL, to the whole process group;
   reports how each process ended; nothing is left behind (checked by `leftovers()`).
+- An optional process (`start(..., optional=True)`: the live view) is stopped and reported like the
+  others, but its exit does not fail `check_alive()`: the graph does not need it.
 - Every process of one graph gets the same FLIP_LOCKSTEP_CPU (one of this process's CPUs, chosen
   by the domain id so that graphs running side by side spread over the CPUs): the simulator and
   its controller pin themselves to it (cassie_flip_sim.lockstep). An environment that sets
@@ -174,6 +176,7 @@ class ManagedProcess:
     started: float = field(default_factory=time.monotonic)
     stopped_by: str | None = None     # None (exited by itself) | SIGINT | SIGTERM | SIGKILL
     returncode: int | None = None
+    optional: bool = False            # its exit does not fail check_alive (the graph goes on)
     _log_fh: object = None
 
     @property
@@ -256,7 +259,7 @@ class Launcher:
     # -- start ---------------------------------------------------------------------------------
     def start(self, name: str, cmd: Sequence[str], *, node_name: str | None = None,
               params: dict | None = None, params_file=None, remaps: dict | None = None,
-              env: dict | None = None, cwd=None, nice: int = 0) -> ManagedProcess:
+              env: dict | None = None, cwd=None, nice: int = 0, optional: bool = False) -> ManagedProcess:
         if name in self.procs and self.procs[name].running():
             raise RuntimeError(f"{name} already running")
         full = [str(c) for c in cmd] + ros_args(node_name, params, params_file, remaps)
@@ -271,13 +274,15 @@ class Launcher:
         popen = subprocess.Popen(full, env=penv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=out,
                                  stderr=subprocess.STDOUT if fh else err, start_new_session=True,
                                  preexec_fn=lambda: _child_setup(nice))
-        mp = ManagedProcess(name, full, penv, log_path, popen, _log_fh=fh)
+        mp = ManagedProcess(name, full, penv, log_path, popen, optional=optional, _log_fh=fh)
         self.procs[name] = mp
         return mp
 
     # -- status --------------------------------------------------------------------------------
     def check_alive(self, names: Iterable[str] | None = None) -> None:
-        for n in (names if names is not None else list(self.procs)):
+        """ProcessDied for the first of ``names`` (default: every process but the optional ones)
+        that has exited."""
+        for n in (names if names is not None else [n for n, p in self.procs.items() if not p.optional]):
             p = self.procs[n]
             if p.poll() is not None:
                 raise ProcessDied(p)
