@@ -52,7 +52,7 @@ def test_hop_lands_through_the_graph(tmp_path):
     assert s["at_rest"] is True and not events(s, "BODY_CONTACT")
     assert {n: p["returncode"] for n, p in s["processes"].items()} == {"recorder": 0, "state": 0, "sim": 0,
                                                                       "planner": 0, "tsc": 0}
-    assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
+    assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists() and (out / "scene.png").exists()
     # the hop's landing tracks the planner's re-solve at the (last) touch-down: measured (from the bag)
     # against planned leg length and COM x over the landing (a landing off the plan: L off by 0.1-0.3 m)
     land = s["tracking"]["landing"]

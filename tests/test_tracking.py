@@ -95,3 +95,15 @@ def test_fig6_draws_a_landing_pitch_plan_on_the_turn_the_pelvis_is_in():
     assert np.allclose(ax.lines[-1][1], 0.05 - 2 * np.pi)
     _plot_ref(ax, data, "phi_pitch")                             # without the measured turn: as planned
     assert np.allclose(ax.lines[-1][1], 0.05)
+
+
+def test_scene_draws_the_crouch_lift_off_apex_touch_down_and_end():
+    from flip_tools.bag import BagData
+    from flip_tools.plots import scene_instants
+    arrays = {"/odom": {"t": np.arange(0.0, 5.0, 0.0005)},
+              "/contact_events": {"t": np.array([2.0, 2.6, 2.7, 2.72]), "event": np.array([0, 1, 0, 1])}}
+    data = BagData(Path("."), topics={k: {"count": 1} for k in arrays}, arrays=arrays)
+    assert scene_instants(data) == [("crouch", 1.7), ("lift-off", 2.0), ("mid-flight", 2.3), ("touch-down", 2.6),
+                                    ("end", pytest.approx(4.9995))]
+    arrays["/contact_events"] = {"t": np.zeros(0), "event": np.zeros(0)}     # a stand: no flight
+    assert [k for k, _ in scene_instants(data)] == ["start", "end"]

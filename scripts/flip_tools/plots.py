@@ -10,6 +10,9 @@ fig6.png      pitch momentum (planned per domain vs. measured: recomputed from /
 pelvis.png    pelvis x, z, pitch (unwrapped), tilt over sim time.
 torques.png   the 11 commanded motor torques.
 tsc_tick.png  histogram of MotorCommand.compute_time_us.
+scene.png     side view (x, z) of the robot's links at the crouch, lift-off, apex, touch-down and end
+              (the model on /robot_description_mjcf posed by /joint_states + /odom, the poses /tf
+              carries), the measured COM path, and the planner's /fslip/com_path and /fslip/targets.
 Domains (from /contact_events and the plan's start) are shaded in every time plot.
 """
 from __future__ import annotations
@@ -35,7 +38,7 @@ def plot_bag(bag: str | Path, out_dir: str | Path, data: BagData | None = None) 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [_fig6(data, out / "fig6.png"), _pelvis(data, out / "pelvis.png"),
-             _torques(data, out / "torques.png"), _tick(data, out / "tsc_tick.png")]
+             _torques(data, out / "torques.png"), _tick(data, out / "tsc_tick.png"), _scene(data, out / "scene.png")]
     return [f for f in files if f is not None]
 
 
@@ -320,3 +323,101 @@ def _tick(data, path):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+# ---------------------------------------------------------------------------------------------
+def scene_instants(data) -> list[tuple[str, float]]:
+    """(label, sim time) of the moments scene.png draws: 0.3 s before the lift-off (the crouch), the
+    lift-off, the flight's middle, the touch-down after it, and the end of the run; without a flight,
+    the start and the end."""
+    od = data.get("/odom")
+    if od is None or not len(od["t"]):
+        return []
+    t_end = float(od["t"][-1])
+    ce = data.get("/contact_events")
+    lo = td = None
+    if ce is not None and len(ce["t"]):
+        ev = np.asarray(ce["event"])
+        los = np.flatnonzero(ev == 0)
+        if len(los):
+            lo = float(ce["t"][los[0]])
+            tds = [float(ce["t"][i]) for i in np.flatnonzero(ev == 1) if ce["t"][i] > lo]
+            td = tds[0] if tds else None
+    if lo is None or td is None:
+        return [("start", float(od["t"][0])), ("end", t_end)]
+    return [("crouch", max(float(od["t"][0]), lo - 0.3)), ("lift-off", lo), ("mid-flight", 0.5 * (lo + td)),
+            ("touch-down", td), ("end", t_end)]
+
+
+def _scene(data, path):
+    """scene.png (module doc): what a 3D view of the run's /tf, /fslip/com_path and /fslip/targets
+    shows, from the side, one panel per moment of :func:`scene_instants`."""
+    import mujoco
+
+    from .measured import bag_mjcf
+    from .video import qpos_from_bag
+    mjcf, js, od = bag_mjcf(data), data.get("/joint_states"), data.get("/odom")
+    instants = scene_instants(data)
+    if not mjcf or js is None or od is None or not len(js["t"]) or not instants:
+        return None
+    try:
+        model = mujoco.MjModel.from_xml_string(mjcf)
+    except Exception:  # noqa: BLE001 - a description that is not a loadable model (a stand-in's)
+        return None
+    mdata = mujoco.MjData(model)
+    frames = qpos_from_bag(model, js, od, fps=200.0)
+    t_frames = _frame_times(js["t"], od["t"], 200.0)[:len(frames)]
+    if not len(t_frames):
+        return None
+
+    def pose(k):
+        mdata.qpos[:] = frames[k]
+        mujoco.mj_kinematics(model, mdata)
+        mujoco.mj_comPos(model, mdata)
+        segs = [(mdata.xpos[model.body_parentid[b]].copy(), mdata.xpos[b].copy()) for b in range(2, model.nbody)]
+        return segs, mdata.subtree_com[1].copy()
+    com = np.array([pose(k)[1] for k in range(len(t_frames))])
+    plans = [np.array([[ps.pose.position.x, ps.pose.position.z] for ps in msg.poses])
+             for msg in (data.get("/fslip/com_path") or {}).get("msgs", [])]
+    targets = [(m.pose.position.x, m.pose.position.z) for msg in (data.get("/fslip/targets") or {}).get("msgs", [])
+               for m in msg.markers if m.action == 0]                              # ADD
+    xs = np.r_[com[:, 0], *[p[:, 0] for p in plans if len(p)]]
+    x0, x1 = float(np.min(xs)) - 0.7, float(np.max(xs)) + 0.7
+    fig, axs = plt.subplots(1, len(instants), figsize=(2.6 * len(instants), 4.2), sharey=True)
+    for ax, (label, t) in zip(np.atleast_1d(axs), instants):
+        k = int(np.argmin(np.abs(t_frames - t)))
+        segs, c = pose(k)
+        for i, p in enumerate(plans):
+            if len(p):
+                ax.plot(p[:, 0], p[:, 1], "--", color="C3", lw=1, label="/fslip/com_path" if i == 0 else None)
+        if targets:
+            ax.plot(*np.array(targets).T, "o", color="C1", ms=5, label="/fslip/targets")
+        ax.plot(com[:k + 1, 0], com[:k + 1, 2], color="C0", lw=1, label="COM (measured)")
+        for a, b in segs:
+            ax.plot([a[0], b[0]], [a[2], b[2]], color="k", lw=1.8, solid_capstyle="round")
+        ax.plot(c[0], c[2], "o", color="C0", ms=4)
+        ax.axhline(0.0, color="0.4", lw=1)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(-0.1, max(2.0, float(np.max(com[:, 2])) + 0.8))
+        ax.set_aspect("equal")
+        ax.set_title(f"{label}, {t:.2f} s", fontsize=9)
+        ax.set_xlabel("x (m)")
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axs)[0].set_ylabel("z (m)")
+    np.atleast_1d(axs)[0].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _frame_times(js_t, od_t, fps):
+    """Sim times of :func:`flip_tools.video.qpos_from_bag`'s frames (the same selection)."""
+    od_set = {round(float(t), 6) for t in od_t}
+    out, next_t = [], -np.inf
+    for t in js_t:
+        if t < next_t or round(float(t), 6) not in od_set:
+            continue
+        next_t = t + 1.0 / fps
+        out.append(float(t))
+    return np.array(out)
