@@ -19,7 +19,8 @@ import numpy as np
 
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
-from fslip_planner.plan import FlipSession, MeasuredState, PelvisState
+from fslip_planner.pitch_turns import PitchTurns
+from fslip_planner.plan import FLIGHT, FlipSession, MeasuredState, PelvisState
 from tsc_controller import Controller, SampledReference, StateConverter
 
 from .summary import LANDING_CRITERIA
@@ -111,7 +112,7 @@ def _log_sample(log: dict, sim: Simulator, ctl: Controller, info: dict, fw_dof: 
 
 
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
-        node_state=False, x_start=None, on_step=None, plant=None, **request):
+        node_state=False, x_start=None, on_step=None, plant=None, turns=None, **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
     ``on_step(sim, ctl, u, info)``, if given, sees every step's command before it is applied.
     ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`).
@@ -120,7 +121,10 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     from the standing pelvis (:func:`pelvis_state`) ``REQUEST_LEAD`` s before ``start``.
     ``plant``: perturbations of the simulated robot that the planner and controller are not told
     (flip_tools.perturb.Plant): it may wrap the controller's state reader (sensor noise), sees each
-    contact event, and may replace each step's command (delay) or push the pelvis before the step."""
+    contact event, and may replace each step's command (delay) or push the pelvis before the step.
+    ``turns``: the somersaults turned before this flip (fslip_planner.pitch_turns.PitchTurns, as
+    planner_node keeps it across requests; the run's ``turns`` in the result, for a next flip on the
+    same simulator and controller)."""
     sim = sim or Simulator()
     ctl = controller or Controller(export_mjcf())
     sc = StateConverter(ctl.dyn)
@@ -128,6 +132,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     if plant is not None:
         read_state = plant.state_reader(read_state, sc, sim)
     session = FlipSession(kind, **request)
+    turns = turns if turns is not None else PitchTurns()
     start = round(start * 1e9) * 1e-9        # a stamp, as the planner's reference carries it
 
     def plan(state=None):
@@ -161,8 +166,12 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 if not landing_reference:
                     r = None
             if r is not None:
+                if r.domain == FLIGHT:
+                    turns.shift_flight(r)
                 log["references"].append((t_ev, r))
                 ctl.set_reference(to_sampled(r, t_ev))
+            if int(ev.kind) == 1:
+                turns.touch_down(st.pelvis_pitch)
         q, v = read_state(sim)
         u, info = ctl.compute(q, v, stamp(sim))
         if on_step is not None:
@@ -177,7 +186,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
             break
     out = {k: (np.array(v) if k not in ("events", "references", "event_states", "fell") else v)
            for k, v in log.items()}
-    out.update(sim=sim, ctl=ctl, session=session)
+    out.update(sim=sim, ctl=ctl, session=session, turns=turns)
     return out
 
 

@@ -32,6 +32,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from .feasibility import rotation_xyzw
 from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
+from .pitch_turns import PitchTurns
 from .plan_geometry import reference_geometry
 
 KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP: 'frontflip',
@@ -143,11 +144,9 @@ class PlannerNode:
         self._clock = SubscriptionSet(self._clock_node, [(Clock, '/clock', STREAM_QOS)])
         self.session = None
         self.plan_id = 0
-        # 2*pi x the somersaults turned so far: the controller tracks a FLIGHT phi_pitch against its
-        # pelvis pitch unwrapped since the start (-2*pi after a backflip), the measured pitch here is
-        # wrapped; a second flip's flight plan turned the body the wrong way without this offset
-        self.pitch_turns = 0.0
-        self._flight_end_pitch = None
+        # the somersaults turned so far, added to each flight plan (a second flip's flight plan turned
+        # the body the wrong way without it; fslip_planner.pitch_turns)
+        self.turns = PitchTurns()
 
     def _sim_now(self):
         got = self._clock.take_all()
@@ -269,20 +268,15 @@ class PlannerNode:
             self.node.get_logger().error(f'replanning at contact event failed: {e}')
             return
         if ref is not None:
-            if ref.domain == FlipReference.DOMAIN_FLIGHT and 'phi_pitch' in ref.names:
-                ref.value[:, ref.names.index('phi_pitch')] += self.pitch_turns
-                self._flight_end_pitch = float(ref.value[-1, ref.names.index('phi_pitch')])
+            if ref.domain == FlipReference.DOMAIN_FLIGHT:
+                self.turns.shift_flight(ref)
             msg = self._publish(ref, state.t)
             sc = state.support_center
             self._publish_geometry(msg, com=state.com, com_velocity=state.com_velocity, foot_z=float(sc[2]),
                                    landing_foot_z=float(sc[2]) - self.session.platform
                                    if ev.event == ContactEvent.LIFT_OFF else None)
-        if ev.event == ContactEvent.TOUCH_DOWN and self._flight_end_pitch is not None:
-            # the unwrapped pitch at touch-down: the measured one, plus the whole turns that bring it
-            # nearest to where the flight plan ended
-            k = round((self._flight_end_pitch - state.pelvis_pitch) / (2 * math.pi))
-            self.pitch_turns = 2 * math.pi * k
-            self._flight_end_pitch = None
+        if ev.event == ContactEvent.TOUCH_DOWN:
+            self.turns.touch_down(state.pelvis_pitch)
 
 
 def main(args=None):
