@@ -100,7 +100,8 @@ print(mine)
 def test_embedded_ray_listens_on_127_0_0_1_only():
     """Every socket that the embedded Ray's processes listen on is bound to 127.0.0.1."""
     if shutil.which("ss") is None:
-        pytest.skip("no ss to list the listening sockets")
+        pytest.skip("ss (iproute2, which scripts/install_system_deps.sh installs) is not on PATH: "
+                    "cannot list the listening sockets")
     env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
     r = subprocess.run([sys.executable, "-c", LISTENERS, str(REPO / "scripts")], capture_output=True, text=True,
                        timeout=300, env=env)
@@ -125,7 +126,8 @@ def test_sweep_on_a_two_node_cluster(one_by_one):
     interface: tests/ray_cluster.py), and the sweep joined to it with --address."""
     unshare = shutil.which("unshare")
     if unshare is None or subprocess.run([unshare, "-n", "true"]).returncode != 0:
-        pytest.skip("no network namespace (unshare -n) for a loopback-only cluster")
+        pytest.skip("this machine does not let an unprivileged process make a network namespace "
+                    "(`unshare -n true` failed): no loopback-only second Ray node to join")
     temp = Path(tempfile.mkdtemp(prefix="rsw", dir="/tmp"))        # short: Ray's socket paths
     try:
         text = sweep(temp / "out", *GRID, "--address", "{address}", timeout=900,

@@ -63,6 +63,7 @@ class BagData:
     start_ns: int | None = None
     end_ns: int | None = None
     recovered: dict | None = None     # what recover_bag kept, when this bag had to be recovered
+    derived: dict = field(default_factory=dict, repr=False, compare=False)   # computed once, read by several
 
     def __getitem__(self, topic: str) -> dict:
         return self.arrays[topic]

@@ -42,10 +42,10 @@ def robot_mass(data: BagData) -> float | None:
 def measured_outputs(data: BagData, every_s: float = 0.005) -> dict | None:
     """{"t", "H_pitch", "L", "x_com", "H_flywheel"} sampled every ``every_s`` of sim time, or None
     when the bag lacks the state or a model of this robot."""
-    cache = data.__dict__.setdefault("_measured_outputs", {})    # summary and plots both ask
-    if every_s not in cache:
-        cache[every_s] = _measured_outputs(data, every_s)
-    return cache[every_s]
+    key = ("measured_outputs", every_s)                           # summary and plots both ask
+    if key not in data.derived:
+        data.derived[key] = _measured_outputs(data, every_s)
+    return data.derived[key]
 
 
 def _measured_outputs(data: BagData, every_s: float) -> dict | None:

@@ -355,7 +355,7 @@ def _scene(data, path):
     import mujoco
 
     from .measured import bag_mjcf
-    from .video import qpos_from_bag
+    from .video import frame_rows, qpos_from_bag
     mjcf, js, od = bag_mjcf(data), data.get("/joint_states"), data.get("/odom")
     instants = scene_instants(data)
     if not mjcf or js is None or od is None or not len(js["t"]) or not instants:
@@ -366,7 +366,7 @@ def _scene(data, path):
         return None
     mdata = mujoco.MjData(model)
     frames = qpos_from_bag(model, js, od, fps=200.0)
-    t_frames = _frame_times(js["t"], od["t"], 200.0)[:len(frames)]
+    t_frames = np.array([float(js["t"][i]) for i, _ in frame_rows(js, od, 200.0)])
     if not len(t_frames):
         return None
 
@@ -409,15 +409,3 @@ def _scene(data, path):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
-
-
-def _frame_times(js_t, od_t, fps):
-    """Sim times of :func:`flip_tools.video.qpos_from_bag`'s frames (the same selection)."""
-    od_set = {round(float(t), 6) for t in od_t}
-    out, next_t = [], -np.inf
-    for t in js_t:
-        if t < next_t or round(float(t), 6) not in od_set:
-            continue
-        next_t = t + 1.0 / fps
-        out.append(float(t))
-    return np.array(out)

@@ -28,7 +28,8 @@ def output_errors(measured: dict, ref: dict, t0: float, t1: float) -> dict | Non
     """{output: {"rms", "max", "n"}} of measured - planned over measured samples in [t0, t1] (the
     plan linearly interpolated at the measured times), plus "t0", "t1"; None without samples."""
     tm = np.asarray(measured["t"], float)
-    a, b = max(t0, reference_span(ref)[0]), min(t1, reference_span(ref)[1])
+    r0, r1 = reference_span(ref)
+    a, b = max(t0, r0), min(t1, r1)
     k = (tm >= a) & (tm <= b)
     if b <= a or not k.any():
         return None

@@ -9,18 +9,28 @@ import numpy as np
 from .bag import load_bag
 
 
-def qpos_from_bag(model, js: dict, od: dict, fps: float = 30.0) -> list[np.ndarray]:
-    """MuJoCo qpos sequences at ``fps`` of sim time: free joint from /odom (position, quaternion),
-    hinges from /joint_states by name, ball joints from their ``_x/_y/_z`` rotation vectors."""
-    import mujoco
-    col = {n: i for i, n in enumerate(js["names"])}
+def frame_rows(js: dict, od: dict, fps: float = 30.0) -> list[tuple[int, int]]:
+    """(/joint_states row, /odom row) of each frame at ``fps`` of sim time: the first step with both
+    at or after each frame's time."""
     od_t = {round(float(t), 6): i for i, t in enumerate(od["t"])}
-    out, next_t = [], -np.inf
+    rows, next_t = [], -np.inf
     for i, t in enumerate(js["t"]):
         j = od_t.get(round(float(t), 6))
         if t < next_t or j is None:
             continue
         next_t = t + 1.0 / fps
+        rows.append((i, j))
+    return rows
+
+
+def qpos_from_bag(model, js: dict, od: dict, fps: float = 30.0) -> list[np.ndarray]:
+    """MuJoCo qpos sequences at ``fps`` of sim time (:func:`frame_rows`): free joint from /odom
+    (position, quaternion), hinges from /joint_states by name, ball joints from their ``_x/_y/_z``
+    rotation vectors."""
+    import mujoco
+    col = {n: i for i, n in enumerate(js["names"])}
+    out = []
+    for i, j in frame_rows(js, od, fps):
         q = model.qpos0.copy()
         for k in range(model.njnt):
             a, typ = model.jnt_qposadr[k], model.jnt_type[k]
