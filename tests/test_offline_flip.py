@@ -90,6 +90,30 @@ def test_backflip_lands_and_stands(backflip):
     assert backflip["pitch"][-1] == pytest.approx(-2 * math.pi, abs=0.1)   # one whole turn, backwards
 
 
+def touch_down_state(r):
+    lo = next(t for k, t in r["events"] if k == 0)
+    return next(st for k, st in r["event_states"] if k == 1 and st.t > lo)
+
+
+def test_backflip_of_a_robot_facing_another_way_lands_as_one_facing_x(backflip):
+    """The somersault is in the plane the robot faces (the controller's heading frame in JUMPING and
+    FLIGHT): turned 0.3 rad about the vertical, the same backflip lands with the feet as far ahead of
+    the COM along its heading (with the jump and flight written in world x-z, 0.04 rad made it fall)."""
+    psi = 0.3
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    q = sim.standing_qpos.copy()
+    q[3:7] = [math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)]
+    sim.reset(q)
+    r = of.run("backflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10,
+               apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    of.assert_stands(sim, ctl, z_stand)
+    assert r["pitch"][-1] == pytest.approx(-2 * math.pi, abs=0.1)
+    ahead = lambda st, a: float((st.support_center - st.com)[:2] @ [math.cos(a), math.sin(a)])
+    assert ahead(touch_down_state(r), psi) == pytest.approx(ahead(touch_down_state(backflip), 0.0), abs=0.02)
+
+
 def test_frontflip_lands_and_stands():
     sim, ctl = robot()
     z_stand = float(sim.standing_qpos[2])

@@ -138,6 +138,25 @@ class GroundTargets:
         """Start the targets again from the state at the next tick (entering STANDING or LANDING)."""
         self.stand = None
 
+    def turn(self, psi, pivot):
+        """The targets' anchors in the frame turned by -``psi`` about the vertical through ``pivot``
+        (x, y): COM positions and velocity turned, pelvis yaw less ``psi`` (Controller._heading_frame)."""
+        s = self.stand
+        if s is None:
+            return
+        c, sn = math.cos(psi), math.sin(psi)
+        R = np.array([[c, sn], [-sn, c]])
+        pivot = np.asarray(pivot, float)
+        for k in ("c0", "c1"):
+            s[k][:2] = pivot + R @ (s[k][:2] - pivot)
+        s["cd0"][:2] = R @ s["cd0"][:2]
+        for k in ("p0", "p1"):
+            s[k][2] -= psi
+        if self.compiled is not None:         # the same entry, its anchors turned
+            T = self.cfg.blend_time
+            self.compiled.begin(s["t0"], float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), s["c0"], s["cd0"],
+                                s["c1"], s["p0"], s["pd0"], s["p1"], T, T ** 2)
+
     def H_now(self):
         """The pitch momentum the targets' removal last saw (0 before their first tick)."""
         if self.compiled is not None:
@@ -412,7 +431,7 @@ class Jumping:
         self.outputs = _ground_outputs({**cfg.gains, **cfg.jumping_gains})
 
     def enter(self):
-        pass                              # the standing targets go on
+        pass                              # the standing targets go on (turned into the heading frame)
 
     def task(self, t, ref):
         des = self.ground.targets(t, False)
@@ -603,6 +622,7 @@ class Controller:
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
+        self._heading = None             # (heading, x, y) of the pelvis at the jump's start (_heading_frame)
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
 
     # -------------------------------------------------------------- inputs
@@ -645,6 +665,7 @@ class Controller:
             r = self.refs.get(Domain.JUMPING)
             if r is not None and r.start_time <= t:
                 if t - r.start_time <= self.cfg.max_late:
+                    self._heading = None
                     self._enter(Domain.JUMPING, t)
                 else:                              # arrived (or was processed) too late: never start mid-plan
                     self.refs.pop(Domain.JUMPING, None)
@@ -677,6 +698,29 @@ class Controller:
             return True, *self.landing.task(t, self.refs.get(Domain.LANDING), self.t_enter)
         return False, *self.flight.task(t, self.refs.get(Domain.FLIGHT), self.t_enter, self.pitch,
                                         self._somersault, self.u_prev)
+
+    def _heading_frame(self, q):
+        """``q`` with the floating base turned about the vertical through its position at the jump's
+        start by minus its heading then (gravity unchanged; the base velocities are local): the jump's
+        and the flight's outputs (pitch momentum, sagittal pitch, leg and toe angles, pelvis axis) and
+        the plan's x/z are in the world x-z plane, the somersault's plane only for a robot facing x."""
+        b = self.dyn.model.idx_qs[self.dyn.base_jid]
+        x, y, z, w = q[b + 3:b + 7]
+        if self._heading is None:
+            self._heading = (math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z)),
+                             float(q[b]), float(q[b + 1]))
+            if self._heading[0] != 0.0:
+                self.ground.turn(*self._heading[:1], self._heading[1:])
+        psi, x0, y0 = self._heading
+        if psi == 0.0:
+            return q
+        c, s = math.cos(0.5 * psi), -math.sin(0.5 * psi)
+        q = np.array(q, float)
+        q[b + 3:b + 7] = (c * x - s * y, c * y + s * x, c * z + s * w, c * w - s * z)
+        c2, s2 = math.cos(psi), -math.sin(psi)
+        dx, dy = q[b] - x0, q[b + 1] - y0
+        q[b:b + 2] = (x0 + c2 * dx - s2 * dy, y0 + s2 * dx + c2 * dy)
+        return q
 
     def _update_pitch(self):
         """Unwrapped sagittal pitch of the pelvis: the angle of its x axis in the world x-z plane,
@@ -713,6 +757,8 @@ class Controller:
             v[self.dyn.spring_v] = 0.0
         if self.fallen:
             return self._fallen_command(v, t0)
+        if self.domain in (Domain.JUMPING, Domain.FLIGHT):
+            q = self._heading_frame(q)
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
         self._update_pitch()
