@@ -51,7 +51,7 @@ class NodeStateReader:
     ``from_ros``, its layout then handed on."""
 
     def __init__(self, conv: StateConverter, sim: Simulator):
-        from cassie_flip_sim.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+        from flip_transport.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
         n = len(sim.joint_names)

@@ -125,8 +125,8 @@ class Simulator:
         self._step += 1
 
     def native_loop_parts(self):
-        """(the compiled step's C table (a capsule, native/stepper_api.h), the applied-torque buffer
-        it writes) for a loop that steps this simulator from C++ (_rcl_io.SimLoop) as ``step`` does,
+        """(the compiled step's C table (a capsule, flip_transport's native/stepper_api.h), the applied-torque buffer
+        it writes) for a loop that steps this simulator from C++ (flip_transport._rcl_io.SimLoop) as ``step`` does,
         or None where it cannot: the numpy backend, or a detector other than ContactDetector (the loop
         runs a C++ copy of that one)."""
         if self._native is None or type(self.detector) is not ContactDetector:
