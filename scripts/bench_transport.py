@@ -114,7 +114,7 @@ def state_side(steps: int, io: str) -> dict:
 
 def _standing_ticks(n: int):
     """A controller and n recorded standing states (closed loop with the simulator, one process)."""
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_model.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller.domains import Controller
     from tsc_controller.state import StateConverter

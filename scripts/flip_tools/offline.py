@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from fslip_planner.pitch_turns import PitchTurns
 from fslip_planner.plan import FLIGHT, FlipSession, MeasuredState, PelvisState

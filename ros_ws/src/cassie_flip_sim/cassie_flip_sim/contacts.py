@@ -8,8 +8,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import mujoco
 import numpy as np
-
-from .model import FOOT_GEOMS
+from cassie_model.model import FOOT_GEOMS
 
 
 class FootForces:

@@ -40,7 +40,15 @@ import time
 
 import numpy as np
 import rclpy
+from cassie_model.model import Scenario, export_mjcf
+from cassie_model.urdf import export_urdf
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from flip_transport import _rcl_io
+from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet,
+                                     cpu_per_step_line, joint_state_layout, motor_command_layout, ns_to_stamp,
+                                     odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
+                                     wrench_stamped_layout)
+from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
@@ -48,19 +56,11 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from flip_transport import _rcl_io
-from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet,
-                                     cpu_per_step_line, joint_state_layout, motor_command_layout, ns_to_stamp,
-                                     odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
-                                     wrench_stamped_layout)
-from flip_transport.node_stop import run_until_stopped
 from std_srvs.srv import Trigger
 
 from .contacts import Event
 from .foot_wrench import FOOT_LINKS, WRENCH_TOPICS
-from .model import Scenario, export_mjcf
 from .simulator import Simulator
-from .urdf import export_urdf
 
 #: longest wall time the simulator holds at a contact event for the planner's reference
 PLANNER_HOLD_TIMEOUT_S = 30.0

@@ -17,13 +17,13 @@ from typing import List, Optional, Tuple, Union
 
 import mujoco
 import numpy as np
+from cassie_model import model as M
+from cassie_model import robot_params as P
+from cassie_model.motor_limits import MotorLimits, with_flywheel_torque
 
 from . import _native
-from . import model as M
-from . import robot_params as P
 from .contacts import ContactDetector, ContactEvent, Event, FootForces
 from .foot_wrench import FootWrenches
-from .motor_limits import MotorLimits, with_flywheel_torque
 
 
 class Simulator:

@@ -25,6 +25,10 @@ import time
 
 import numpy as np
 import rclpy
+from flip_transport import _rcl_io
+from flip_transport.lockstep import (LATCHED_QOS, CdrCursor, MessageReader, SubscriptionSet, avoid_lockstep_cpu,
+                                     joint_state_layout, odometry_layout, scheduling_note)
+from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -32,10 +36,6 @@ from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from flip_transport import _rcl_io
-from flip_transport.lockstep import (LATCHED_QOS, CdrCursor, MessageReader, SubscriptionSet, avoid_lockstep_cpu,
-                                     joint_state_layout, odometry_layout, scheduling_note)
-from flip_transport.node_stop import run_until_stopped
 from tf2_msgs.msg import TFMessage
 
 from .link_transforms import LinkTransforms

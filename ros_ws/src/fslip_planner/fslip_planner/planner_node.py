@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 import rclpy
-from cassie_flip_sim.robot_params import FOOT_RADIUS
+from cassie_model.robot_params import FOOT_RADIUS
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
 from flip_transport.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
