@@ -8,7 +8,8 @@ PY_BOOT ?= $(firstword $(wildcard /usr/bin/python3.11) python3)
 VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
-PKGS := ros_ws/src/cassie_flip_sim ros_ws/src/fslip_planner ros_ws/src/tsc_controller
+PKGS := ros_ws/src/cassie_model ros_ws/src/cassie_flip_sim ros_ws/src/fslip_planner ros_ws/src/tsc_controller
+TRANSPORT := ros_ws/src/flip_transport
 MSGS := ros_ws/src/flip_msgs
 MSG_SRCS := $(wildcard $(MSGS)/msg/*.msg $(MSGS)/srv/*.srv) $(MSGS)/CMakeLists.txt $(MSGS)/package.xml $(MSGS)/pyproject.toml ros_ws/cmake/ros_wheels_python.cmake
 TF2_MSGS := ros_ws/src/tf2_msgs
@@ -17,7 +18,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 
 .PHONY: setup demo test clean-venv
-setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-pkgs
+setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-transport $(VENV)/.stamp-pkgs
 
 # Debian packages: a C++ toolchain for flip_msgs, GL libraries for offscreen rendering, Debian's
 # python3.11 with venv and headers.
@@ -55,9 +56,16 @@ $(VENV)/.stamp-tf2-msgs: $(VENV)/.stamp-deps $(TF2_MSG_SRCS)
 	fi
 	touch $@
 
+# flip_transport: the lockstep transport with its compiled per-step messages (on the ROS wheels' rcl
+# headers and libraries); installed before the packages below, as cassie_flip_sim's compiled step is
+# built against its native/stepper_api.h
+$(VENV)/.stamp-transport: $(VENV)/.stamp-deps $(TRANSPORT)/setup.py $(TRANSPORT)/setup.cfg $(wildcard $(TRANSPORT)/flip_transport/native/*.cpp $(TRANSPORT)/flip_transport/native/*.h)
+	$(PIP) install -q --no-build-isolation --no-deps -e $(TRANSPORT)
+	touch $@
+
 # tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~2 min) here too, and
 # cassie_flip_sim its compiled step (on the mujoco wheel's headers and library)
-$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.h)
+$(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(VENV)/.stamp-transport $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.h)
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
 	touch $@
 

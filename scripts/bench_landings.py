@@ -38,7 +38,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     import numpy as np
 
     from flip_tools import offline as of
-    from cassie_flip_sim.model import Scenario, export_mjcf
+    from cassie_model.model import Scenario, export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller import Controller
     from tsc_controller.config import config_overrides

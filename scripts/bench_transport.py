@@ -50,17 +50,17 @@ def _close(waiter, subs, node):
 def state_side(steps: int, io: str) -> dict:
     import numpy as np
     import rclpy
-    from cassie_flip_sim import _rcl_io
-    from cassie_flip_sim.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, joint_state_layout,
-                                          motor_command_layout, odometry_layout, pin_to_lockstep_cpu,
-                                          MessageReader)
+    from flip_transport import _rcl_io
+    from flip_transport.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, joint_state_layout,
+                                         motor_command_layout, odometry_layout, pin_to_lockstep_cpu,
+                                         MessageReader)
     from flip_msgs.msg import MotorCommand
     from nav_msgs.msg import Odometry
     from sensor_msgs.msg import JointState
     pin_to_lockstep_cpu()
     rclpy.init()
     node = rclpy.create_node("transport_state")
-    from cassie_flip_sim.lockstep import LATCHED_QOS
+    from flip_transport.lockstep import LATCHED_QOS
     from flip_msgs.msg import FlipReference
     subs = SubscriptionSet(node, [(MotorCommand, "/motor_command", STREAM_QOS),
                                   (FlipReference, "/fslip/reference", LATCHED_QOS)], raw=("/motor_command",))
@@ -114,7 +114,7 @@ def state_side(steps: int, io: str) -> dict:
 
 def _standing_ticks(n: int):
     """A controller and n recorded standing states (closed loop with the simulator, one process)."""
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_model.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller.domains import Controller
     from tsc_controller.state import StateConverter
@@ -132,9 +132,9 @@ def _standing_ticks(n: int):
 
 def command_side(work: str, work_us: float, io: str) -> dict:
     import rclpy
-    from cassie_flip_sim import _rcl_io
-    from cassie_flip_sim.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, motor_command_layout,
-                                          pin_to_lockstep_cpu, read_stamp_ns)
+    from flip_transport import _rcl_io
+    from flip_transport.lockstep import (STREAM_QOS, RawMessage, SubscriptionSet, motor_command_layout,
+                                         pin_to_lockstep_cpu, read_stamp_ns)
     from flip_msgs.msg import MotorCommand
     from nav_msgs.msg import Odometry
     from sensor_msgs.msg import JointState

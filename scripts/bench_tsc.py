@@ -30,7 +30,7 @@ for p in ("tsc_controller", "cassie_flip_sim"):
     if str(_src / p) not in sys.path:
         sys.path.insert(0, str(_src / p))
 
-from cassie_flip_sim.model import export_mjcf  # noqa: E402
+from cassie_model.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
 from tsc_controller import Controller, StateConverter  # noqa: E402
 from tsc_controller import tsc as T  # noqa: E402

@@ -36,7 +36,7 @@ def test_platform_flip_lands_beyond_the_platform_unless_told_otherwise(tmp_path)
     """Flip C as the issue words it (no --distance): the robot stands 0.05 m behind the platform's
     edge, so a flip in place would land on the platform; the request gets a forward distance that puts
     the whole foot (heel 0.10 m behind the foot point) past the edge with room for the shins."""
-    from cassie_flip_sim.model import Scenario
+    from cassie_model.model import Scenario
 
     def plan(*extra):
         out = tmp_path / ("p" + "_".join(extra))

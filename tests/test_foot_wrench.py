@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cassie_flip_sim.foot_wrench import FOOT_LINKS, FootWrenches, to_world
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, StateConverter
 

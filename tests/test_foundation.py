@@ -442,7 +442,7 @@ def test_flip_requests_a_distance_that_reaches_the_landing_ground():
     """A platform flip (C) and a flip onto the raised landing area (D) get the forward distance that
     takes them off the platform / onto the area unless --distance says otherwise."""
     from types import SimpleNamespace as NS
-    from cassie_flip_sim.model import Scenario
+    from cassie_model.model import Scenario
     from flip_tools.flip_request import PLATFORM_FLIP_DISTANCE, RAISED_FLIP_DISTANCE, request_distance
     assert request_distance(NS(distance=None, platform=None, ground_offset=None)) == 0.0
     assert request_distance(NS(distance=None, platform=0.5, ground_offset=None)) == PLATFORM_FLIP_DISTANCE

@@ -135,7 +135,7 @@ def assert_offline_reproduces(out, od):
     OPENBLAS_CORETYPE=Haswell or Prescott the commands differ from the 27th or 35th step of an offline
     backflip on, by up to 1e-9 N*m in 3 s.)"""
     import offline_flip as of
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_model.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from flip_tools.bag import load_bag
     from tsc_controller import Controller

@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 import pytest
-from cassie_flip_sim.lockstep import (MessageReader, RawMessage, fields, joint_state_layout,
-                                      motor_command_layout, odometry_layout, read_stamp_ns)
+from flip_transport.lockstep import (MessageReader, RawMessage, fields, joint_state_layout,
+                                     motor_command_layout, odometry_layout, read_stamp_ns)
 from flip_msgs.msg import MotorCommand
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
@@ -25,7 +25,7 @@ from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 
 _PIN_PROBE = """
 import os, threading
-from cassie_flip_sim.lockstep import pin_to_lockstep_cpu, scheduling_note
+from flip_transport.lockstep import pin_to_lockstep_cpu, scheduling_note
 cpu = pin_to_lockstep_cpu()
 seen = {}
 t = threading.Thread(target=lambda: seen.update(later=os.sched_getscheduler(0)))   # made after the pin
@@ -138,7 +138,7 @@ def test_subscription_set_takes_each_queued_message_once(test_node):
     depth-1 stream, once; a topic outside ``on`` taken when another wakes the wait; a message that
     comes after a wait returned is there at the next one."""
     import rclpy
-    from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, wait_for_subscribers
+    from flip_transport.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, wait_for_subscribers
     from std_msgs.msg import String
     node = rclpy.create_node("subscription_set_test", context=test_node.context)
     subs = SubscriptionSet(node, [(String, "/s", STREAM_QOS), (String, "/l", LATCHED_QOS),

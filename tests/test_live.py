@@ -215,7 +215,7 @@ def resolve(path):
 
 def test_the_layout_shows_fields_the_recorded_topics_have():
     import json
-    from cassie_flip_sim.robot_params import MOTOR_NAMES
+    from cassie_model.robot_params import MOTOR_NAMES
     from cassie_flip_sim.simulator import Simulator
     doc = json.loads(LAYOUT.read_text())
     config = doc["configById"]

@@ -9,9 +9,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 from flip_tools.bag import BagData  # noqa: E402
 from flip_tools.measured import measured_outputs  # noqa: E402
 
-from cassie_flip_sim.model import export_mjcf  # noqa: E402
+from cassie_model.model import export_mjcf  # noqa: E402
 from cassie_flip_sim.simulator import Simulator  # noqa: E402
-from cassie_flip_sim.urdf import export_urdf  # noqa: E402
+from cassie_model.urdf import export_urdf  # noqa: E402
 
 
 def test_measured_outputs_match_the_simulator():

@@ -12,7 +12,7 @@ import pytest
 
 PROLOGUE = textwrap.dedent("""
     import os, signal, sys
-    from cassie_flip_sim.node_stop import run_until_stopped
+    from flip_transport.node_stop import run_until_stopped
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def sigint_now():

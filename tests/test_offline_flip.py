@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import offline_flip as of
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller
 

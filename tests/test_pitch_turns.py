@@ -37,7 +37,7 @@ def test_turns_count_at_each_touch_down_from_where_the_flight_plan_ended():
 def test_offline_second_flip_is_planned_in_the_controllers_pitch():
     """Two backflips on one simulator and controller, as `flip request` on a running graph: the second
     flight plan starts at the controller's unwrapped pitch (-2pi), as planner_node sends it."""
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_model.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from flip_tools import offline as of
     from tsc_controller import Controller

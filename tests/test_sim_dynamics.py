@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from cassie_flip_sim import model as M
-from cassie_flip_sim import robot_params as P
+from cassie_model import model as M
+from cassie_model import robot_params as P
 from cassie_flip_sim.contacts import ContactDetector, Event
 from cassie_flip_sim.simulator import Simulator
 
@@ -112,7 +112,7 @@ def test_standing_forces_and_accessors(sim):
 def test_support_center_is_under_the_standing_robot_and_moves_with_the_feet(sim):
     """support_center: mean of the four foot contact spheres; standing, it is under the COM (the
     standing state puts the COM over the feet) at the spheres' radius; shifting the robot moves it."""
-    from cassie_flip_sim import robot_params as P
+    from cassie_model import robot_params as P
     sim.reset()
     sc, c = sim.support_center(), sim.com_position()
     assert abs(sc[0] - c[0]) < 0.03 and abs(sc[1] - c[1]) < 1e-3

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from cassie_flip_sim.simulator import Simulator
 
-from cassie_flip_sim import model as M
-from cassie_flip_sim import robot_params as P
-from cassie_flip_sim.motor_limits import MotorLimits, torque_bounds
+from cassie_model import model as M
+from cassie_model import robot_params as P
+from cassie_model.motor_limits import MotorLimits, torque_bounds
 
 pin = pytest.importorskip("pinocchio")
 

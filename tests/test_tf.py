@@ -15,7 +15,7 @@ from ros_harness import FLIP, new_domain  # noqa: F401  (puts scripts/ on sys.pa
 
 from cassie_flip_sim.link_transforms import LinkTransforms, link_poses, matrix, quat_xyzw, rotvec_to_quat
 from cassie_flip_sim.simulator import Simulator
-from cassie_flip_sim.urdf import ball_angles, export_urdf
+from cassie_model.urdf import ball_angles, export_urdf
 
 POS_TOL, ROT_TOL = 1e-3, 1e-6
 GRID_NS = 5_000_000                    # sim_node's /clock period (200 Hz)

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import PinocchioMap, export_mjcf
+from cassie_model.model import PinocchioMap, export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, Domain, SampledReference, StateConverter, state_from_ros
 from tsc_controller.dynamics import Dynamics
@@ -253,7 +253,7 @@ def test_state_from_serialized_messages_equals_the_numpy_reading():
     with its normalisation in convert_cdr's operations, as from_ros's numpy dot rounds x.x by the
     BLAS kernel's summation; from_ros's own within QUAT_ATOL); a message of another layout (here a
     longer frame id) is not read (None) until that layout is handed on."""
-    from cassie_flip_sim.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+    from flip_transport.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
     from nav_msgs.msg import Odometry
     from sensor_msgs.msg import JointState
     sim = Simulator()

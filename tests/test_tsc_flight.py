@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from launched_flip import flight_reference, launch
 from tsc_controller import Controller, Domain, StateConverter

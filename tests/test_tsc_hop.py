@@ -10,7 +10,7 @@ flywheel (momentum transmission, eq. (momentumTrans)); landing/standing blend to
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, Domain, SampledReference, StateConverter
 

@@ -9,7 +9,7 @@ end standing: pelvis at its standing height, upright, nothing but the feet on th
 
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from launched_flip import flight_reference, launch
 from offline_flip import assert_stands

@@ -16,7 +16,7 @@ SPLIT = ("reference", "profiles", "config")
 #: modules (docs/architecture.md: the only ones besides the nodes that import ROS)
 ROS = ("rclpy", "rcl_interfaces", "rosidl_runtime_py", "rosidl_parser", "builtin_interfaces", "std_msgs",
        "sensor_msgs", "nav_msgs", "rosgraph_msgs", "flip_msgs")
-TRANSPORT = ("cassie_flip_sim.lockstep", "cassie_flip_sim._rcl_io", "tsc_controller.tsc_node")
+TRANSPORT = ("flip_transport.lockstep", "flip_transport._rcl_io", "tsc_controller.tsc_node")
 
 
 def _defined(module: str) -> set:

@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, StateConverter
 from tsc_controller.dynamics import Dynamics
@@ -222,8 +222,9 @@ def test_qp_terms_match(mjcf, monkeypatch):
 
 @pytest.mark.parametrize("scale", [1.0, 3.0])
 def test_torque_bounds_match(scale):
-    """limits.TorqueLimits.bounds (compiled) against its numpy form, bit for bit, at and beyond the
-    no-load speeds, at rest, and for non-finite speeds."""
+    """limits.TorqueLimits.bounds (compiled) against the envelope's Python reference
+    (cassie_model.motor_limits.MotorLimits.bounds), bit for bit, at and beyond the no-load speeds, at
+    rest, and for non-finite speeds."""
     from tsc_controller.limits import TorqueLimits
     lim = TorqueLimits(speed_scale=scale, flywheel_torque=260.0)
     rng = np.random.default_rng(2)
@@ -234,7 +235,7 @@ def test_torque_bounds_match(scale):
         if k % 11 == 0:
             w[rng.integers(11)] = [np.inf, -np.inf, np.nan][k % 3]
         with np.errstate(invalid="ignore"):           # inf speed x 0 (the flywheel's 1/w0) in numpy
-            ref = lim.bounds_python(w)
+            ref = lim.limits.bounds(w)
         for a, b in zip(lim.bounds(w), ref):
             np.testing.assert_array_equal(a, b)
 
@@ -310,7 +311,7 @@ def test_compiled_targets_equal_python_targets(flip):
     (flip D's rebounds), and with the COM past the feet in STANDING (the in-place frontflip from
     0.98 s, whose rebound in the landing starts STANDING in the air, the COM ahead of the toes)."""
     import offline_flip as of
-    from cassie_flip_sim.model import Scenario
+    from cassie_model.model import Scenario
     scenario, request, start, seconds, seen = {
         "C": (Scenario.platform(0.5), dict(forward_distance=0.6, platform_height=0.5, apex_height=1.2), 0.5,
               5.0, "leg catch re-anchored"),

@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from test_tsc_dynamics import random_state
 from tsc_controller import Controller
 

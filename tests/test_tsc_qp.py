@@ -3,8 +3,8 @@ unilateral normal force, friction pyramid; ProxQP, OSQP and DAQP agree."""
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
-from cassie_flip_sim.motor_limits import torque_bounds
+from cassie_model.model import export_mjcf
+from cassie_model.motor_limits import torque_bounds
 from test_tsc_dynamics import random_state
 from tsc_controller import Controller
 from tsc_controller.limits import grf_constraints
@@ -118,7 +118,7 @@ def test_torque_limits_match_simulator_envelope():
 def test_torque_limits_flywheel_torque():
     """``flywheel_torque`` moves the flywheel's bound (last entry) to ±260 N·m at any speed, as in the
     simulator; the leg motors' envelope is unchanged; ``Controller(flywheel_torque=...)`` uses it."""
-    from cassie_flip_sim.motor_limits import MotorLimits
+    from cassie_model.motor_limits import MotorLimits
     from tsc_controller.limits import TorqueLimits
     tl, tl0 = TorqueLimits(flywheel_torque=260), TorqueLimits()
     lb, ub = tl.bounds(np.zeros(11))

@@ -5,7 +5,7 @@ S R1^T (a_a - a_b - w_1 x (v_a - v_b)))."""
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from test_tsc_dynamics import _frame_terms, random_state
 from tsc_controller.dynamics import N_CONTACT, SIDES, Dynamics
 

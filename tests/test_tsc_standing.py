@@ -3,7 +3,7 @@ holding the standing pose (the vertical slice of the project)."""
 import numpy as np
 import pytest
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, Domain, StateConverter
 

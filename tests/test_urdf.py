@@ -10,8 +10,8 @@ import pytest
 import yourdfpy
 from scipy.spatial.transform import Rotation
 
-from cassie_flip_sim import model as M
-from cassie_flip_sim.urdf import ball_angles, export_urdf, urdf_from_model
+from cassie_model import model as M
+from cassie_model.urdf import ball_angles, export_urdf, urdf_from_model
 
 
 POS_TOL, ROT_TOL = 1e-3, 1e-6

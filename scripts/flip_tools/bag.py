@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from cassie_flip_sim.cdr import joint_state_layout, motor_command_layout, odometry_layout
+from flip_transport.cdr import joint_state_layout, motor_command_layout, odometry_layout
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_types_from_msg
 

@@ -111,7 +111,7 @@ class LiveBridge:
     def _take_stamped(self, sub) -> list:
         """(stamp ns, bytes) of a per-step stream's queued messages on the grid (all: grid_ns 0)."""
         if self.grid_ns:
-            from cassie_flip_sim import _rcl_io
+            from flip_transport import _rcl_io
             return _rcl_io.take_on_grid(sub.handle.pointer, self.grid_ns)
         out = []
         while (r := sub.handle.take_message(sub.msg_type, True)) is not None:
@@ -142,7 +142,7 @@ def serve(port: int, domain_id: int | None = None, host: str = LIVE_HOST, durati
           hold_streams: bool = False, rate_hz: float = STREAM_RATE_HZ) -> int:
     """Listen on host:port, then forward the graph's topics until SIGINT/SIGTERM (or ``duration``);
     ``hold_streams``: the streamed topics only after SIGUSR1."""
-    from cassie_flip_sim.lockstep import avoid_lockstep_cpu
+    from flip_transport.lockstep import avoid_lockstep_cpu
     from .typestore import flip_typestore
     # off the lockstep's CPU, like the state publisher (before the server's and DDS's threads start)
     avoid_lockstep_cpu()

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from cassie_flip_sim.model import export_mjcf
+from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from fslip_planner.pitch_turns import PitchTurns
 from fslip_planner.plan import FLIGHT, FlipSession, MeasuredState, PelvisState
@@ -51,7 +51,7 @@ class NodeStateReader:
     ``from_ros``, its layout then handed on."""
 
     def __init__(self, conv: StateConverter, sim: Simulator):
-        from cassie_flip_sim.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+        from flip_transport.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
         n = len(sim.joint_names)

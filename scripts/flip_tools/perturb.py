@@ -130,7 +130,7 @@ def scenario(flip: Flip, ground_offset: float = 0.0):
     """The terrain of a flip with its landing ground ``ground_offset`` m off what it has: the
     landing area starts 0.4 m ahead of the robot (Scenario.raised_landing's), where a flip that
     travels comes down."""
-    from cassie_flip_sim.model import Scenario
+    from cassie_model.model import Scenario
     h = flip.ground_offset + ground_offset
     base = Scenario.platform(flip.platform) if flip.platform else Scenario.flat()
     if h == 0.0:
@@ -142,8 +142,8 @@ def perturb_model(sim, sample: Sample) -> None:
     """Edit a built simulator's model for the sample's friction, mass_scale, com_offset and
     torque_scale knobs (the knobs left at their defaults change nothing), then reset it."""
     import mujoco
-    from cassie_flip_sim.model import TERRAIN_GEOMS
-    from cassie_flip_sim.motor_limits import MotorLimits
+    from cassie_model.model import TERRAIN_GEOMS
+    from cassie_model.motor_limits import MotorLimits
     m = sim.model
     changed = False
     if sample.knob("friction") is not None:
@@ -250,7 +250,7 @@ def _rotate_xyzw(q, rotvec) -> np.ndarray:
 # ------------------------------------------------------------------ one sample
 def robot_params() -> dict:
     """The design parameters of ``ROBOT`` (flywheel, motor speed scale, flywheel torque)."""
-    from cassie_flip_sim.robot_params import robot
+    from cassie_model.robot_params import robot
     return robot(ROBOT).params()
 
 
@@ -263,7 +263,7 @@ def robot_request() -> dict:
 def build(sample: Sample):
     """(simulator, controller, plant) of a sample: the simulator perturbed, the controller as for
     the unperturbed robot (its model, limits and settings from the robot alone)."""
-    from cassie_flip_sim.model import export_mjcf
+    from cassie_model.model import export_mjcf
     from cassie_flip_sim.simulator import Simulator
     from tsc_controller import Controller
     p = robot_params()

@@ -53,7 +53,7 @@ def qpos_from_bag(model, js: dict, od: dict, fps: float = 30.0) -> list[np.ndarr
 
 def render_run(out_dir: str | Path, flywheel="I", scenario=None, fps: float = 30.0) -> Path:
     """Render DIR/bag to DIR/flip.mp4 (or .gif); returns the file written."""
-    from cassie_flip_sim.model import build_model
+    from cassie_model.model import build_model
     from cassie_flip_sim.render import render_states
     out_dir = Path(out_dir)
     data = load_bag(out_dir / "bag", ["/joint_states", "/odom"])

@@ -4,7 +4,7 @@ import signal
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
-from cassie_flip_sim.node_stop import run_until_stopped
+from flip_transport.node_stop import run_until_stopped
 
 
 def run(node_factory, args=None) -> int:

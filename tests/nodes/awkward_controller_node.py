@@ -8,7 +8,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import run  # noqa: E402
-from cassie_flip_sim.lockstep import STREAM_QOS  # noqa: E402
+from flip_transport.lockstep import STREAM_QOS  # noqa: E402
 from flip_msgs.msg import MotorCommand  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.node import Node  # noqa: E402

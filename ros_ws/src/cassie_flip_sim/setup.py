@@ -1,13 +1,11 @@
 """ament_python package cassie_flip_sim: `colcon build` on a ROS 2 Jazzy install, or `pip install -e` into the venv.
 
 The simulator's per-step work (cassie_flip_sim._native, native/step.cpp) is a pybind11 extension on
-the MuJoCo C API: the headers and library of the mujoco wheel.  sim_node's per-step messages
-(cassie_flip_sim._rcl_io, native/rcl_io.cpp) are one on rcl's C API: the headers and libraries of
-the ROS wheels in the venv (or of the ROS install on AMENT_PREFIX_PATH); its compiled stepping loop
-calls the first through the C table of native/stepper_api.h (neither links the other's library)."""
+the MuJoCo C API: the headers and library of the mujoco wheel.  sim_node's per-step messages are
+flip_transport's (flip_transport._rcl_io, on rcl's C API); its compiled stepping loop calls the step
+through the C table of flip_transport's native/stepper_api.h, so flip_transport is installed first
+(neither links the other's library)."""
 import importlib.util
-import os
-import sys
 from glob import glob
 from pathlib import Path
 
@@ -29,46 +27,31 @@ def mujoco_dir() -> Path:
     return d
 
 
+def stepper_api_dir() -> Path:
+    """flip_transport's native/ directory: stepper_api.h, the C table its stepping loop calls."""
+    spec = importlib.util.find_spec("flip_transport")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("cassie_flip_sim: flip_transport must be installed to build the native step")
+    d = Path(list(spec.submodule_search_locations)[0]) / "native"
+    if not (d / "stepper_api.h").is_file():
+        raise RuntimeError(f"cassie_flip_sim: no stepper_api.h in {d}")
+    return d
+
+
 def native_extension():
     d = mujoco_dir()
+    api = stepper_api_dir()
     lib = sorted(d.glob("libmujoco.so.*"))[-1].name
     return Pybind11Extension(
         f"{package_name}._native",
         ["cassie_flip_sim/native/step.cpp"],
-        depends=["cassie_flip_sim/native/stepper_api.h"],
-        include_dirs=[str(d / "include")],
+        depends=[str(api / "stepper_api.h")],
+        include_dirs=[str(d / "include"), str(api)],
         library_dirs=[str(d)],
         # the library the mujoco module itself loads (same soname, one copy in the process)
         extra_link_args=[f"-l:{lib}", f"-Wl,-rpath,{d}"],
         # -ffp-contract=off: no fused multiply-adds the numpy reference does not make (bit-equal steps)
         extra_compile_args=["-O2", "-ffp-contract=off"],
-        cxx_std=17,
-    )
-
-
-def ros_prefix() -> Path:
-    """The prefix holding rcl's headers and library: the venv (ROS wheels) or a ROS install."""
-    for p in [sys.prefix] + os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if p and (Path(p) / "include" / "rcl" / "rcl" / "rcl.h").is_file() and (Path(p) / "lib" / "librcl.so").is_file():
-            return Path(p)
-    raise RuntimeError("cassie_flip_sim: no rcl headers and library (include/rcl/rcl/rcl.h, lib/librcl.so) "
-                       f"in {sys.prefix} or on AMENT_PREFIX_PATH")
-
-
-def rcl_extension():
-    p = ros_prefix()
-    # Jazzy's layout: include/<package>/<package>/*.h
-    inc = [str(d) for d in sorted((p / "include").iterdir())
-           if d.is_dir() and (d / d.name).is_dir() and not d.name.startswith("python")]
-    return Pybind11Extension(
-        f"{package_name}._rcl_io",
-        ["cassie_flip_sim/native/rcl_io.cpp"],
-        depends=["cassie_flip_sim/native/stepper_api.h"],
-        include_dirs=inc,
-        library_dirs=[str(p / "lib")],
-        libraries=["rcl", "rmw", "rcutils"],
-        extra_link_args=[f"-Wl,-rpath,{p / 'lib'}"],
-        extra_compile_args=["-O2"],
         cxx_std=17,
     )
 
@@ -83,7 +66,7 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     package_data={package_name: ["data/*.json"]},
-    ext_modules=[native_extension(), rcl_extension()],
+    ext_modules=[native_extension()],
     cmdclass={"build_ext": build_ext},
     install_requires=["setuptools"],
     zip_safe=False,

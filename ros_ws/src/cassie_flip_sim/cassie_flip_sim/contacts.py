@@ -8,8 +8,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import mujoco
 import numpy as np
-
-from .model import FOOT_GEOMS
+from cassie_model.model import FOOT_GEOMS
 
 
 class FootForces:
@@ -87,7 +86,7 @@ class ContactDetector:
     def state(self) -> tuple:
         """(in_contact, zero_run, onset step (-1: none), onset time, flight steps, lift_off_force,
         touch_down_force, lift_off_steps, min_flight_steps): what the C++ copy of this detector in
-        sim_node's compiled loop carries on from (native/stepper_api.h); ``set_state`` takes it back."""
+        sim_node's compiled loop carries on from (flip_transport's native/stepper_api.h); ``set_state`` takes it back."""
         step, time = self._onset if self._onset is not None else (-1, 0.0)
         return (self.in_contact, self._zero_run, step, time, self._flight_steps, self.lift_off_force,
                 self.touch_down_force, self.lift_off_steps, self.min_flight_steps)

@@ -7,13 +7,12 @@ import sys
 import time
 
 import rclpy
+from cassie_model.robot_params import MOTOR_NAMES
 from flip_msgs.msg import MotorCommand
+from flip_transport.lockstep import STREAM_QOS, SubscriptionSet, stamp_to_ns
 from nav_msgs.msg import Odometry
 from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import JointState
-
-from .lockstep import STREAM_QOS, SubscriptionSet, stamp_to_ns
-from .robot_params import MOTOR_NAMES
 
 DT_NS = 500_000
 

@@ -20,8 +20,7 @@ from typing import Optional
 
 import mujoco
 import numpy as np
-
-from .model import FOOT_GEOMS
+from cassie_model.model import FOOT_GEOMS
 
 #: the feet, in the order of a wrench array's rows (URDF links = MuJoCo bodies)
 FOOT_LINKS = ("left_foot", "right_foot")

@@ -16,8 +16,7 @@ from typing import Dict, Iterable, List, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
-
-from .urdf import ball_angles
+from cassie_model.urdf import ball_angles
 
 #: ``(parent link, child link, joint name)`` of one URDF joint
 Edge = Tuple[str, str, str]

@@ -13,12 +13,12 @@ Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
      each foot's ground contact wrench of state k (``foot_wrench``: the contact forces solved at
      state k, in the foot link's frame) on ``/left_foot/wrench``, ``/right_foot/wrench``, stamped k·dt.
 The per-step messages are published from preallocated serialized templates and the commands read
-from the received bytes (``lockstep.RawMessage``, ``motor_command_layout``); in lockstep, by default
-through rcl's C API (``_rcl_io``: publish, and ``CommandWait`` for the command), ``rcl_io:=false``
-through rclpy's Python.  There the routine steps run back to back in C++ (``_rcl_io.SimLoop``,
-native/rcl_io.cpp: publish, wait, MuJoCo step and contact detector, the GIL released), which hands
-back to this loop whatever is not routine: a step with pre-step work (1.), a wait that got no
-command (a re-send, a reference, a wrong size, an interrupt), the run's end, and every 200 steps
+from the received bytes (flip_transport's ``lockstep.RawMessage``, ``motor_command_layout``); in
+lockstep, by default through rcl's C API (``flip_transport._rcl_io``: publish, and ``CommandWait`` for
+the command), ``rcl_io:=false`` through rclpy's Python.  There the routine steps run back to back in
+C++ (``_rcl_io.SimLoop``, native/rcl_io.cpp: publish, wait, MuJoCo step and contact detector, the GIL
+released), which hands back to this loop whatever is not routine: a step with pre-step work (1.), a
+wait that got no command (a re-send, a reference, a wrong size, an interrupt), the run's end, and every 200 steps
 (services, and the stop's signal handler, which only Python runs: a stop ends the run at the next
 such return, at a step's end); ``compiled_loop:=false`` keeps every step in Python (the same messages).
 Modes: ``lockstep`` (default), ``realtime`` (the robot stays at step 0, its state re-sent, until the
@@ -40,7 +40,15 @@ import time
 
 import numpy as np
 import rclpy
+from cassie_model.model import Scenario, export_mjcf
+from cassie_model.urdf import export_urdf
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from flip_transport import _rcl_io
+from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet,
+                                     cpu_per_step_line, joint_state_layout, motor_command_layout, ns_to_stamp,
+                                     odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
+                                     wrench_stamped_layout)
+from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
@@ -50,17 +58,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from . import _rcl_io
-from .lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet, cpu_per_step_line,
-                       joint_state_layout, motor_command_layout, ns_to_stamp,
-                       odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
-                       wrench_stamped_layout)
-from .node_stop import run_until_stopped
 from .contacts import Event
 from .foot_wrench import FOOT_LINKS, WRENCH_TOPICS
-from .model import Scenario, export_mjcf
 from .simulator import Simulator
-from .urdf import export_urdf
 
 #: longest wall time the simulator holds at a contact event for the planner's reference
 PLANNER_HOLD_TIMEOUT_S = 30.0

@@ -17,13 +17,13 @@ from typing import List, Optional, Tuple, Union
 
 import mujoco
 import numpy as np
+from cassie_model import model as M
+from cassie_model import robot_params as P
+from cassie_model.motor_limits import MotorLimits, with_flywheel_torque
 
 from . import _native
-from . import model as M
-from . import robot_params as P
 from .contacts import ContactDetector, ContactEvent, Event, FootForces
 from .foot_wrench import FootWrenches
-from .motor_limits import MotorLimits, with_flywheel_torque
 
 
 class Simulator:
@@ -125,8 +125,8 @@ class Simulator:
         self._step += 1
 
     def native_loop_parts(self):
-        """(the compiled step's C table (a capsule, native/stepper_api.h), the applied-torque buffer
-        it writes) for a loop that steps this simulator from C++ (_rcl_io.SimLoop) as ``step`` does,
+        """(the compiled step's C table (a capsule, flip_transport's native/stepper_api.h), the applied-torque buffer
+        it writes) for a loop that steps this simulator from C++ (flip_transport._rcl_io.SimLoop) as ``step`` does,
         or None where it cannot: the numpy backend, or a detector other than ContactDetector (the loop
         runs a C++ copy of that one)."""
         if self._native is None or type(self.detector) is not ContactDetector:

@@ -25,6 +25,10 @@ import time
 
 import numpy as np
 import rclpy
+from flip_transport import _rcl_io
+from flip_transport.lockstep import (LATCHED_QOS, CdrCursor, MessageReader, SubscriptionSet, avoid_lockstep_cpu,
+                                     joint_state_layout, odometry_layout, scheduling_note)
+from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -34,11 +38,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
-from . import _rcl_io
 from .link_transforms import LinkTransforms
-from .lockstep import (LATCHED_QOS, CdrCursor, MessageReader, SubscriptionSet, avoid_lockstep_cpu,
-                       joint_state_layout, odometry_layout, scheduling_note)
-from .node_stop import run_until_stopped
 
 #: the simulator's streams, read beside the lockstep: ~0.5 s of 2 kHz states queue while it lags
 DEEP_STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,

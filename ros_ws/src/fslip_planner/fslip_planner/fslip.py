@@ -78,7 +78,7 @@ class FSLIPParams:
 
 def envelope_factor(speed_ratio):
     """The share of the stall torque a leg motor gives at |ω|/ω₀ = ``speed_ratio`` while it drives:
-    1 − |ω|/ω₀, the simulator's envelope (``cassie_flip_sim.motor_limits``; the leg force row is
+    1 − |ω|/ω₀, the simulator's envelope (``cassie_model.motor_limits``; the leg force row is
     F^s ≤ F_max · this).  Cassie's published curve, 2 (1 − |ω|/ω₀) capped at 1, waits for the
     controller to be tuned for it (branch published-envelope)."""
     return 1.0 - speed_ratio
@@ -151,9 +151,9 @@ def params_for(flywheel="I", mu=0.6, knee_speed_envelope=True, motor_speed_scale
     length l (toe–heel contact points), flywheel torque bound (``flywheel_torque`` N·m; None or 0:
     the flywheel's own), the regression, and (by default) the knee torque–speed envelope (the
     simulator clips motor torques with it), its no-load speed times ``motor_speed_scale`` as in
-    ``cassie_flip_sim.motor_limits.MotorLimits``."""
-    from cassie_flip_sim import robot_params as P
-    from cassie_flip_sim.motor_limits import with_flywheel_torque
+    ``cassie_model.motor_limits.MotorLimits``."""
+    from cassie_model import robot_params as P
+    from cassie_model.motor_limits import with_flywheel_torque
 
     from . import regression
     reg = regression.load(flywheel)

@@ -99,27 +99,20 @@ LANDING_LEG_EXTENSION = 0.04
 
 # ------------------------------------------------------------------------------------------ robot
 class _Robot:
-    """Per-(flywheel, motor speed scale, flywheel torque) constants from the simulator model (cached)."""
+    """Per-(flywheel, motor speed scale, flywheel torque) constants of the robot model (cached)."""
     _cache: Dict[tuple, "_Robot"] = {}
 
     def __init__(self, flywheel, motor_speed_scale=1.0, flywheel_torque=None):
-        from cassie_flip_sim import robot_params as P
-        from cassie_flip_sim.simulator import Simulator
-        sim = Simulator(flywheel)
-        self.com0 = sim.com_position()
-        p0, q0 = sim.pelvis_pose()
+        from cassie_model import robot_params as P
+        from cassie_model.model import standing_figures
+        st = standing_figures(flywheel)
+        self.com0 = st.com
+        p0, q0 = st.pelvis_position, st.pelvis_quaternion
         self.pelvis0 = p0
         # the standing COM in the pelvis frame: where the COM is when the robot stands, wherever it is
         self.com_in_pelvis = rotation_xyzw(np.r_[q0[1:], q0[0]]).T @ (self.com0 - p0)
-        self.mass = sim.total_mass()
-        m, d = sim.model, sim.data
-        import mujoco
-        Ls = []
-        for s in ("left", "right"):
-            a = d.xanchor[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_foot")]
-            b = d.xanchor[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_hip_pitch")]
-            Ls.append(np.linalg.norm(a - b))
-        self.L0 = float(np.mean(Ls))
+        self.mass = st.mass
+        self.L0 = st.leg_length
         self.params = F.params_for(flywheel, motor_speed_scale=motor_speed_scale,
                                    flywheel_torque=flywheel_torque)
         fw = P.flywheel(flywheel)
@@ -322,7 +315,7 @@ def _check_scale(scale):
 
 def _check_torque(torque):
     """The flywheel torque limit override (None: the flywheel's own); ValueError if invalid."""
-    from cassie_flip_sim.motor_limits import flywheel_torque_override
+    from cassie_model.motor_limits import flywheel_torque_override
     return flywheel_torque_override(torque)
 
 

@@ -19,11 +19,11 @@ import time
 
 import numpy as np
 import rclpy
-from cassie_flip_sim.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
-from cassie_flip_sim.node_stop import run_until_stopped
-from cassie_flip_sim.robot_params import FOOT_RADIUS
+from cassie_model.robot_params import FOOT_RADIUS
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
+from flip_transport.lockstep import LATCHED_QOS, STREAM_QOS, SubscriptionSet, ns_to_stamp, stamp_to_ns
+from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy

@@ -40,8 +40,8 @@ QUANTITIES = ("K", "D", "I", "F_max", "com_h")
 def _robot():
     import mujoco
 
-    from cassie_flip_sim import model as M
-    from cassie_flip_sim import robot_params as P
+    from cassie_model import model as M
+    from cassie_model import robot_params as P
     return mujoco, M, P
 
 

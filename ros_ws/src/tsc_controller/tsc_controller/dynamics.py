@@ -1,6 +1,6 @@
 """Rigid-body dynamics of Cassie + flywheel with Pinocchio (paper eq. (1)-(2)).
 
-The model is loaded from the simulator's exported MJCF string (``cassie_flip_sim.model.export_mjcf``).
+The model is loaded from the simulator's exported MJCF string (``cassie_model.model.export_mjcf``).
 Pinocchio imports the kinematic tree, inertias, armature and the MJCF ``connect`` equalities (the four
 loop closures); it does not import joint stiffness, so the spring torques tau_s = -K (q - q_spring) of the
 shin and heel springs and the viscous joint damping -D v are read with MuJoCo's compiler from the same

@@ -1,6 +1,6 @@
 """Constraints of the TSC QP (paper eq. (QP)): torque–speed envelope and ground-reaction limits.
 
-* Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) from ``cassie_flip_sim.motor_limits.torque_bounds``
+* Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) of ``cassie_model.motor_limits.MotorLimits``
   (the simulator's own envelope; the flywheel has a constant 195 N·m, or ``flywheel_torque``).
 * GRF: C_v F_v <= c_v, with F_v in the contact basis of :meth:`Dynamics.contact_constraints`
   (per foot: toe (f_d, f_t, f_n), heel (f_t, f_n)):  f_n >= f_min at toe and heel (unilateral and
@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import numpy as np
+from cassie_model.motor_limits import MotorLimits
 
 from . import _native
 
@@ -46,31 +47,18 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_ma
 
 
 class TorqueLimits:
-    """u_lb(qdot), u_ub(qdot) of the 11 motors (contract order): the envelope of
-    ``cassie_flip_sim.motor_limits`` (same parameters, same formula, without its per-call overhead):
-    motoring, the torque falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
+    """u_lb(qdot), u_ub(qdot) of the 11 motors (contract order): the envelope of ``limits`` (a
+    :class:`~cassie_model.motor_limits.MotorLimits`, the simulator's), compiled: motoring, the torque
+    falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
 
-    def __init__(self, limits=None, speed_scale: float = 1.0, flywheel_torque: float | None = None):
-        from cassie_flip_sim import motor_limits as ml
-        lim = limits if limits is not None else ml.MotorLimits.from_flywheel("I", speed_scale, flywheel_torque)
-        self.tau_max = np.asarray(lim.torque_limit, float)
-        w0 = np.asarray(lim.no_load_speed, float)
-        self._inv_w0 = np.where(np.isinf(w0), 0.0, 1.0 / np.where(np.isinf(w0), 1.0, w0))
-        self._sign_tau = np.array([-self.tau_max, self.tau_max])
-        self._sign = np.array([[-1.0], [1.0]])
+    def __init__(self, limits: MotorLimits | None = None, speed_scale: float = 1.0,
+                 flywheel_torque: float | None = None):
+        self.limits = limits if limits is not None else MotorLimits.from_flywheel("I", speed_scale, flywheel_torque)
+        self.tau_max = np.asarray(self.limits.torque_limit, float)
+        self._inv_w0 = np.asarray(self.limits.inv_no_load_speed, float)
 
     def bounds(self, motor_velocities):
         """(u_lb, u_ub): the bound a motor pushes against (the sign of its velocity) is
-        tau_max clip(1 - |w|/w0, 0, 1), the other one tau_max.  Compiled (tsc_controller._native,
-        the same operations); :meth:`bounds_python` is the numpy reference."""
+        tau_max clip(1 - |w|/w0, 0, 1), the other one tau_max.  Compiled (tsc_controller._native);
+        ``limits.bounds`` (MotorLimits.bounds) is the Python reference it equals bit for bit."""
         return _native.torque_bounds(motor_velocities, self._inv_w0, self.tau_max)
-
-    def bounds_python(self, motor_velocities):
-        """:meth:`bounds` in numpy."""
-        f = self._sign * np.asarray(motor_velocities, float)        # (-w, w)
-        np.fmax(f, 0.0, out=f)
-        f *= self._inv_w0
-        np.subtract(1.0, f, out=f)
-        np.maximum(f, 0.0, out=f)
-        f *= self._sign_tau
-        return f[0], f[1]

@@ -96,7 +96,7 @@ class StateConverter:
 
     def use_cdr_layout(self, js_layout, odom_layout):
         """Let :meth:`from_cdr` read serialized messages of this layout: ``js_layout`` and ``odom_layout``
-        are ``(size, runs, offsets)`` (``cassie_flip_sim.cdr.MessageReader.layout``) of a
+        are ``(size, runs, offsets)`` (``flip_transport.cdr.MessageReader.layout``) of a
         /joint_states whose names :meth:`from_ros` has indexed and of an /odom.  Native backend only
         (a no-op with the Python one)."""
         if self._map is None:

@@ -6,10 +6,10 @@ re-sends on a timeout) gets the same command again: the node is idempotent per s
 (``/fslip/reference``) and contact events (``/contact_events``) switch the domain; with neither,
 the controller holds the standing pose.
 
-The per-step messages stay serialized (``cassie_flip_sim.lockstep``): the state is read from
+The per-step messages stay serialized (``flip_transport.lockstep``): the state is read from
 numpy views of the received bytes, the command patched into a preallocated one. The simulator
 publishes ``/odom`` before ``/joint_states``, so the node wakes on ``/joint_states`` alone. By
-default rcl's C API waits for them and publishes the command (``cassie_flip_sim._rcl_io``), with
+default rcl's C API waits for them and publishes the command (``flip_transport._rcl_io``), with
 rclpy's subscriptions and publisher; ``rcl_io:=false`` does the same through rclpy's Python.
 """
 from __future__ import annotations
@@ -19,14 +19,14 @@ import time
 
 import numpy as np
 import rclpy
-from cassie_flip_sim import _rcl_io
-from cassie_flip_sim.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
-                                      SubscriptionSet, cpu_per_step_line, joint_state_layout,
-                                      motor_command_layout, odometry_layout,
-                                      pin_to_lockstep_cpu, read_stamp_ns, scheduling_note,
-                                      stamp_to_ns)
-from cassie_flip_sim.node_stop import run_until_stopped
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from flip_transport import _rcl_io
+from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
+                                     SubscriptionSet, cpu_per_step_line, joint_state_layout,
+                                     motor_command_layout, odometry_layout,
+                                     pin_to_lockstep_cpu, read_stamp_ns, scheduling_note,
+                                     stamp_to_ns)
+from flip_transport.node_stop import run_until_stopped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -66,7 +66,7 @@ class TscNode:
         # controller settings (ControllerConfig fields) as a JSON object; checked here, before any
         # controller is built: a bad one stops the node with the reason
         self.overrides = config_overrides(self.node.declare_parameter('controller', '').value)
-        # wait for the state and publish the command through rcl's C API (cassie_flip_sim._rcl_io)
+        # wait for the state and publish the command through rcl's C API (flip_transport._rcl_io)
         # instead of rclpy's Python (the same messages; false: the Python path, e.g. to compare)
         self.rcl_io = bool(self.node.declare_parameter('rcl_io', True).value)
         # recorders of /motor_command (besides the simulator) to match before the first answer: the

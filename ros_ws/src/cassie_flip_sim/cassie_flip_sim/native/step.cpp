@@ -9,8 +9,9 @@
 // fused multiply-adds numpy does not make).
 //
 // Stepper._api() hands the same step, state and body-contact test to sim_node's compiled stepping
-// loop (_rcl_io.SimLoop) as a C table of function pointers (stepper_api.h); Detector is that loop's
-// copy of contacts.ContactDetector, exposed here for its test against the Python one.
+// loop (flip_transport._rcl_io.SimLoop) as a C table of function pointers (flip_transport's
+// native/stepper_api.h); Detector is that loop's copy of contacts.ContactDetector, exposed here for
+// its test against the Python one.
 #include "stepper_api.h"
 
 #include <mujoco/mujoco.h>

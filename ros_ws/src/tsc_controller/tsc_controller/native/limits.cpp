@@ -1,5 +1,6 @@
-// Compiled torque-speed envelope of the TSC (tsc_controller._native.torque_bounds): the formula of
-// limits.TorqueLimits.bounds, operation for operation, without numpy's per-call overhead.
+// Compiled torque-speed envelope of the TSC (tsc_controller._native.torque_bounds, limits.TorqueLimits):
+// cassie_model.motor_limits.MotorLimits.bounds, the Python reference, bit for bit (also for
+// non-finite speeds), without numpy's per-call overhead.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 

@@ -76,7 +76,7 @@ public:
 
   /// The layout of the serialized messages ``convert_cdr`` reads: per message its size, the byte runs
   /// outside its numeric fields and stamp as (offset, bytes) (frame ids, joint names, sequence
-  /// lengths: what cassie_flip_sim.cdr.MessageReader compares), and the offsets of position and velocity (n_in
+  /// lengths: what flip_transport.cdr.MessageReader compares), and the offsets of position and velocity (n_in
   /// doubles each; /joint_states), pose (7) and twist (6; /odom).
   void set_cdr_layout(py::ssize_t js_size, const py::list & js_runs, py::ssize_t position_offset,
                       py::ssize_t velocity_offset, py::ssize_t odom_size, const py::list & odom_runs,

@@ -1,6 +1,6 @@
 """Serialized ROS 2 messages (CDR, as rmw_fastrtps writes them) read as numpy arrays, without ROS.
 
-The lockstep's per-step messages are handled as bytes (cassie_flip_sim.lockstep): a
+The lockstep's per-step messages are handled as bytes (flip_transport.lockstep): a
 ``*_layout(buf, names=None)`` function here finds the offsets of a message type's numeric fields,
 :func:`fields` makes numpy views of them, :class:`MessageReader` keeps a layout while a stream's
 messages keep it.  The bag reader (scripts/flip_tools/bag.py) reads whole topics the same way.

@@ -1,8 +1,9 @@
 // The simulator's step as a plain C table of function pointers, for sim_node's compiled stepping loop
-// (cassie_flip_sim._rcl_io.SimLoop, native/rcl_io.cpp) to call without Python in between: _native
-// (MuJoCo, no ROS) hands it out in a capsule (Stepper._api()), _rcl_io (rcl, no MuJoCo) calls it.
+// (flip_transport._rcl_io.SimLoop, native/rcl_io.cpp) to call without Python in between:
+// cassie_flip_sim._native (MuJoCo, no ROS; built against this header, installed with flip_transport)
+// hands it out in a capsule (Stepper._api()), _rcl_io (rcl, no MuJoCo) calls it.
 //
-// Also the lift-off / touch-down detector of contacts.ContactDetector in C++ (CfsDetector), which
+// Also the lift-off / touch-down detector of cassie_flip_sim.contacts.ContactDetector in C++ (CfsDetector), which
 // that loop runs after each step as Simulator.step does: the same comparisons in the same order (so
 // the same events); its state goes back and forth with the Python detector's between loop calls.
 #pragma once

@@ -1,9 +1,9 @@
-// cassie_flip_sim._rcl_io: the lockstep's per-step messages (sim_node's and tsc_node's) on rcl's C API (the rcl of the
+// flip_transport._rcl_io: the lockstep's per-step messages (sim_node's and tsc_node's) on rcl's C API (the rcl of the
 // rclpy wheel), without the Python around rclpy's publish, wait set and take.
 //
 // The publishers, subscriptions, guard condition and context are rclpy's (their `pointer`s): rclpy
 // creates and destroys them; this module only uses them in between (``CommandWait.close()`` before
-// the subscriptions are destroyed).  Messages stay serialized (CDR) as in cassie_flip_sim.lockstep.
+// the subscriptions are destroyed).  Messages stay serialized (CDR) as in flip_transport.lockstep.
 //
 // SimLoop is sim_node's compiled stepping loop (lockstep with a controller): the routine steps back
 // to back (publish the state, wait for its command, step MuJoCo through the C table of
@@ -275,8 +275,8 @@ class CommandWait : public Waiter {
 // sim_node's compiled stepping loop: lockstep steps k, k+1, ... as SimNode.run's loop takes them
 // (its module doc), each one: publish the state (/clock when due, /odom, /joint_states, from the
 // serialized templates), wait for the command of step k (CommandWait::wait), step MuJoCo with it
-// (the Stepper's C table), run the contact detector (contacts.ContactDetector's copy), and every
-// wrench_every-th step publish the feet's wrenches of state k stamped k dt (set_wrenches).  run()
+// (the Stepper's C table), run the contact detector (cassie_flip_sim.contacts.ContactDetector's
+// copy), and every wrench_every-th step publish the feet's wrenches of state k stamped k dt (set_wrenches).  run()
 // returns to Python (with the GIL released in between, no Python runs) whenever anything is not
 // routine:
 //   PRE_STEP  before a step whose pre-step checks are not empty (a contact event of the last step

@@ -1,8 +1,8 @@
 """Cassie + flywheel model: MJCF export (the one source for MuJoCo and Pinocchio), scenarios,
-MuJoCo model build (``mujoco.MjSpec``), standing state on the loop-closure manifold, and the
-MuJoCo <-> Pinocchio state mapping.
+MuJoCo model build (``mujoco.MjSpec``), standing state on the loop-closure manifold (and the
+figures a planner takes of it: mass, COM, leg length), and the MuJoCo <-> Pinocchio state mapping.
 
-Built from :mod:`cassie_flip_sim.robot_params` only.  Robot geometry uses primitives; only the
+Built from :mod:`cassie_model.robot_params` only.  Robot geometry uses primitives; only the
 foot contact spheres collide, and only with the terrain.
 """
 from __future__ import annotations
@@ -337,6 +337,37 @@ def standing_state(model: mujoco.MjModel, scen: Union[str, Scenario, None] = Non
     lowest = foot_points_world(model, d)[:, 2].min() - P.FOOT_RADIUS
     qpos[2] += sc.start_height - lowest
     return qpos, np.zeros(model.nv)
+
+
+@dataclass(frozen=True)
+class StandingFigures:
+    """The robot standing still on flat ground (:func:`standing_state`): what a planner takes of it."""
+    mass: float                   # kg, the whole robot
+    com: np.ndarray               # (3,) COM, world frame
+    pelvis_position: np.ndarray   # (3,) pelvis origin, world frame
+    pelvis_quaternion: np.ndarray  # (4,) pelvis orientation, wxyz
+    leg_length: float             # m, hip pitch axis to foot joint, the two legs' mean
+
+
+def standing_figures(flywheel: FlywheelSpec = "I") -> StandingFigures:
+    """:class:`StandingFigures` of the robot with ``flywheel`` in its standing state on flat ground:
+    forward kinematics (``mj_forward``) of :func:`standing_state` on :func:`build_model`, the state
+    the simulator starts from."""
+    model = build_model(flywheel, None)
+    qpos, qvel = standing_state(model, None)
+    d = mujoco.MjData(model)
+    d.qpos[:] = qpos
+    d.qvel[:] = qvel
+    mujoco.mj_forward(model, d)
+    pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+    legs = []
+    for s in ("left", "right"):
+        a = d.xanchor[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_foot")]
+        b = d.xanchor[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_hip_pitch")]
+        legs.append(np.linalg.norm(a - b))
+    return StandingFigures(mass=float(mujoco.mj_getTotalmass(model)), com=d.subtree_com[pelvis].copy(),
+                           pelvis_position=d.qpos[0:3].copy(), pelvis_quaternion=d.qpos[3:7].copy(),
+                           leg_length=float(np.mean(legs)))
 
 
 # --------------------------------------------------------------------------------------------

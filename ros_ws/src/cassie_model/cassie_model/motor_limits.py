@@ -6,6 +6,10 @@ motoring (τ·ω > 0) the available torque drops linearly from τ_max at ω = 0 
 braking (τ·ω ≤ 0) the full τ_max is available.  The flywheel has a constant 195 N·m limit
 (paper §V; ``flywheel_torque`` replaces it) and, optionally, a maximum speed (no-load speed = that speed).
 Order = contract motor order (architecture.md).
+
+This is the envelope's one Python form, the reference of its compiled copies: the simulator's torque
+clip (cassie_flip_sim native/step.cpp, against ``Simulator(backend="python")``) and the controller's
+bounds (tsc_controller native/limits.cpp, ``TorqueLimits``), each tested bit for bit against it.
 """
 from __future__ import annotations
 

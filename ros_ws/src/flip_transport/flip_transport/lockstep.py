@@ -216,7 +216,7 @@ def ns_to_stamp(ns, stamp):
     return stamp
 
 
-# -- serialized messages: read with cassie_flip_sim.cdr (no ROS), written with RawMessage ----------
+# -- serialized messages: read with flip_transport.cdr (no ROS), written with RawMessage ----------
 class RawMessage:
     """A message serialized once and published as bytes: its stamp and the fields a ``*_layout``
     function finds are patched in place (numpy views) before each publish."""
