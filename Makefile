@@ -17,7 +17,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 
 .PHONY: setup demo test clean-venv
-setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-pkgs
+setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-pkgs $(VENV)/.stamp-tools
 
 # Debian packages: a C++ toolchain for flip_msgs, GL libraries for offscreen rendering, Debian's
 # python3.11 with venv and headers.
@@ -59,6 +59,12 @@ $(VENV)/.stamp-tf2-msgs: $(VENV)/.stamp-deps $(TF2_MSG_SRCS)
 # cassie_flip_sim its compiled step (on the mujoco wheel's headers and library)
 $(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.h)
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
+	touch $@
+
+# flip_tools (tools/): the `flip` command (.venv/bin/flip; scripts/flip runs the same) and the library the
+# bench scripts and tests import; editable, so a change to its sources needs no reinstall
+$(VENV)/.stamp-tools: $(VENV)/.stamp-deps tools/pyproject.toml
+	$(PIP) install -q --no-build-isolation --no-deps -e tools
 	touch $@
 
 # the design-study robot the flips land on today (--robot cassie-legs3-fw260: leg motors x3, 260 N*m

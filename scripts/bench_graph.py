@@ -45,7 +45,6 @@ import time
 from pathlib import Path
 
 FLIP = Path(__file__).resolve().parent / "flip"
-sys.path.insert(0, str(FLIP.parent))
 
 
 ZERO_TICK_TSC = FLIP.parent / "stand_ins" / "zero_tick_tsc_node.py"

@@ -23,9 +23,6 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 WARMUP = 500
 STATE_JOINTS = 33

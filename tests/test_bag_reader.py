@@ -3,19 +3,14 @@ message-by-message deserialisation gives, to the bit; a topic whose layout chang
 reads wrong, goes the message-by-message way."""
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from ros_harness import REPO
 from synthetic_bag import write_flip_bag
 
-sys.path.insert(0, str(REPO / "scripts"))
-
-from flip_tools import bag as B  # noqa: E402
-from flip_tools.typestore import flip_typestore  # noqa: E402
+from flip_tools import bag as B
+from flip_tools.typestore import flip_typestore
 
 PER_STEP = {"/clock", "/odom", "/joint_states", "/motor_command"}
 

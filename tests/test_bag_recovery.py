@@ -15,8 +15,7 @@ from rosbags.rosbag2 import Reader
 
 from ros_harness import FLIP, stand_in
 
-sys.path.insert(0, str(FLIP.parent))
-from flip_tools.bag import load_bag, recover_bag, scan_mcap  # noqa: E402
+from flip_tools.bag import load_bag, recover_bag, scan_mcap
 
 
 def streamed(path: Path) -> tuple[int, list[str]]:

@@ -7,11 +7,9 @@ import sys
 
 import pytest
 
-from ros_harness import FLIP, REPO
+from ros_harness import FLIP
 
-sys.path.insert(0, str(REPO / "scripts"))
-
-from flip_tools.cpu_latency import CpuLatencyRequest, parse_latency  # noqa: E402
+from flip_tools.cpu_latency import CpuLatencyRequest, parse_latency
 
 
 def test_request_written_while_held_and_released(tmp_path):

@@ -69,13 +69,8 @@ def readme_exit_codes() -> dict[int, str]:
 
 
 def test_exit_codes_are_distinct_and_documented():
-    import importlib.machinery
-    import importlib.util
-    loader = importlib.machinery.SourceFileLoader("flip_script", str(FLIP))
-    spec = importlib.util.spec_from_loader("flip_script", loader)
-    mod = importlib.util.module_from_spec(spec)
-    loader.exec_module(mod)
-    codes = {k: getattr(mod, k) for k in dir(mod) if k.startswith("EXIT_")}
+    from flip_tools.cli import common
+    codes = {k: getattr(common, k) for k in dir(common) if k.startswith("EXIT_")}
     assert len(set(codes.values())) == len(codes), codes
     assert codes["EXIT_USAGE"] == 2                      # argparse's own
     assert sorted(readme_exit_codes()) == sorted(codes.values())

@@ -14,12 +14,10 @@ import pytest
 
 from ros_harness import FLIP, REPO, stand_in
 
-sys.path.insert(0, str(REPO / "scripts"))
-
-from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand  # noqa: E402
-from flip_msgs.srv import RequestFlip  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
+from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
+from flip_msgs.srv import RequestFlip
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
 
 MOTORS = ["left_hip_roll", "left_hip_yaw", "left_hip_pitch", "left_knee", "left_foot",
           "right_hip_roll", "right_hip_yaw", "right_hip_pitch", "right_knee", "right_foot", "flywheel"]
@@ -154,8 +152,7 @@ def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
 def test_launcher_children_take_sigint_when_the_launcher_ignores_it(tmp_path):
     """A launcher started in the background by a non-interactive shell inherits SIGINT ignored; its
     nodes must still stop on SIGINT (the first step of the stop sequence), not need SIGTERM."""
-    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
-            f"sys.path.insert(0, {str(FLIP.parent)!r}); "
+    code = ("import signal; signal.signal(signal.SIGINT, signal.SIG_IGN); "
             "from flip_tools.launcher import Launcher; "
             f"L = Launcher(0, log_dir={str(tmp_path)!r}); L.start('polite', ['sleep', '600']); "
             "rc = L.stop('polite', sigint_timeout=5.0, sigterm_timeout=5.0); "
@@ -171,7 +168,6 @@ def test_interrupt_inside_a_destructor_still_stops_the_wait(tmp_path):
     ("Exception ignored in ..."); the wait loops must still end with Interrupted, not run on."""
     code = f"""
 import os, signal, sys, time
-sys.path.insert(0, {str(FLIP.parent)!r})
 from flip_tools.launcher import GraphWatcher, Interrupted, interrupt_latch
 
 class SignalsOnDelete:

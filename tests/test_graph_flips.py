@@ -18,7 +18,7 @@ import sys
 import numpy as np
 import pytest
 
-from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
+from ros_harness import FLIP
 
 
 #: the somersault robot (README)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
+from ros_harness import FLIP
 
 
 def record(tmp_path, name):

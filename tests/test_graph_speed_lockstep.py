@@ -20,7 +20,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
+from ros_harness import FLIP
 
 
 _PIN_PROBE = """

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
+from ros_harness import FLIP
 from flip_tools.live import (LiveServer, LiveTopics, TopicInfo, live_node_cmd, parse_serving_line,
                              port_arg, port_problem)
 from flip_tools.live_client import LiveClient, parse_binary

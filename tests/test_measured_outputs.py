@@ -1,17 +1,15 @@
 """flip_tools.measured: the outputs recomputed from bag arrays (/joint_states + /odom + the model)
 agree with the simulator's own figures (MuJoCo: COM, centroidal momentum) — an independent check."""
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools.bag import BagData  # noqa: E402
-from flip_tools.measured import measured_outputs  # noqa: E402
+from flip_tools.bag import BagData
+from flip_tools.measured import measured_outputs
 
-from cassie_flip_sim.model import export_mjcf  # noqa: E402
-from cassie_flip_sim.simulator import Simulator  # noqa: E402
-from cassie_flip_sim.urdf import export_urdf  # noqa: E402
+from cassie_flip_sim.model import export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from cassie_flip_sim.urdf import export_urdf
 
 
 def test_measured_outputs_match_the_simulator():

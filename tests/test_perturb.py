@@ -1,18 +1,15 @@
 """flip_tools.perturb: each knob changes the simulated robot (and only it) as specified; a sample's
 record gives the same result every time; unknown knobs and misplaced values are refused."""
-import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools import offline  # noqa: E402
-from flip_tools import perturb as P  # noqa: E402
+from flip_tools import offline
+from flip_tools import perturb as P
 
-from cassie_flip_sim.contacts import ContactEvent, Event  # noqa: E402
+from cassie_flip_sim.contacts import ContactEvent, Event
 
 
 def built(flip="A", **knobs):

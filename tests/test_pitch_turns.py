@@ -1,15 +1,12 @@
 """fslip_planner.pitch_turns: a flight plan in the controller's unwrapped pitch, after earlier flips
 (planner_node and the offline runner share it)."""
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fslip_planner.pitch_turns import PitchTurns
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 
 
 class _Ref:

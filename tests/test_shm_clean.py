@@ -7,7 +7,6 @@ import sys
 import time
 from pathlib import Path
 
-from ros_harness import FLIP  # noqa: F401  (puts scripts/ on sys.path)
 from flip_tools.shm import SHM_DIR, clean_zombies
 
 NODE = ("import rclpy, time; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node('shm_probe'); "

@@ -13,10 +13,9 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from flip_tools import perturb as P  # noqa: E402
-from flip_tools import sweep as S  # noqa: E402
-from flip_tools import sweep_report as R  # noqa: E402
+from flip_tools import perturb as P
+from flip_tools import sweep as S
+from flip_tools import sweep_report as R
 
 FLIP = REPO / "scripts" / "flip"
 # B and C, with and without joint noise (seed 5): 4 short samples
@@ -75,7 +74,6 @@ def test_local_sweep_gives_the_records_of_one_by_one_runs(local_sweep, one_by_on
 
 LISTENERS = r"""
 import os, re, subprocess, sys
-sys.path.insert(0, sys.argv[1])
 from flip_tools import sweep
 sweep.start_ray(None, 1)
 import ray
@@ -103,7 +101,7 @@ def test_embedded_ray_listens_on_127_0_0_1_only():
         pytest.skip("ss (iproute2, which scripts/install_system_deps.sh installs) is not on PATH: "
                     "cannot list the listening sockets")
     env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
-    r = subprocess.run([sys.executable, "-c", LISTENERS, str(REPO / "scripts")], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-c", LISTENERS], capture_output=True, text=True,
                        timeout=300, env=env)
     assert r.returncode == 0, r.stderr
     listening = ast.literal_eval(r.stdout.strip().splitlines()[-1])

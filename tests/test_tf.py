@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ros_harness import FLIP, new_domain  # noqa: F401  (puts scripts/ on sys.path)
+from ros_harness import FLIP, new_domain
 
 from cassie_flip_sim.link_transforms import LinkTransforms, link_poses, matrix, quat_xyzw, rotvec_to_quat
 from cassie_flip_sim.simulator import Simulator

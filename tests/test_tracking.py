@@ -1,12 +1,10 @@
 """flip_tools.tracking: measured outputs against a reference, over the span both cover."""
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools.tracking import newest_reference, output_errors, peak_abs, reference_span  # noqa: E402
+from flip_tools.tracking import newest_reference, output_errors, peak_abs, reference_span
 
 
 def _ref(domain=3, start=2.0, offset=0.0):

@@ -1,16 +1,13 @@
 """flip_tools.video: MuJoCo states rebuilt from bag arrays (/joint_states + /odom) equal the
 simulator's own qpos, and they render to a file."""
-import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools.video import qpos_from_bag  # noqa: E402
+from flip_tools.video import qpos_from_bag
 
-from cassie_flip_sim.render import render_states  # noqa: E402
-from cassie_flip_sim.simulator import Simulator  # noqa: E402
+from cassie_flip_sim.render import render_states
+from cassie_flip_sim.simulator import Simulator
 
 
 def test_qpos_from_bag_arrays_reproduces_the_simulator_and_renders(tmp_path):

@@ -144,14 +144,9 @@ def start_live(launcher, port: int, override: str | None = None, nice: int = 10,
     """Start the live process under ``launcher`` as an optional one (its exit fails nothing) and
     wait until it listens: ``{"url", "port"}``, or ``{"error"}`` with its last log lines when it
     exited first or did not listen within ``timeout`` s (then it is stopped; the run goes on)."""
-    import os
     import time
-    from pathlib import Path
-    scripts = str(Path(__file__).resolve().parents[1])
-    pythonpath = os.pathsep.join(p for p in (scripts, os.environ.get("PYTHONPATH")) if p)
     # niced like the recorder: the lockstep loop comes first
-    proc = launcher.start("live", live_node_cmd(port, override), nice=nice, optional=True,
-                          env={"PYTHONPATH": pythonpath})
+    proc = launcher.start("live", live_node_cmd(port, override), nice=nice, optional=True)
     end = time.monotonic() + timeout
     while (bound := parse_serving_line(proc.log_text())) is None:
         if proc.poll() is not None:

@@ -2,7 +2,7 @@
 
 Started by `flip run|stand|sim --live` as its own process (node ``flip_live``), like the recorder:
 
-    python -m flip_tools.live_node --port 8765 [--domain N]     (from scripts/, on a running graph)
+    python -m flip_tools.live_node --port 8765 [--domain N]     (on a running graph)
 
 - Channels: the contract topics of docs/architecture.md at once, and every other topic that appears
   in the graph (polled, as the recorder's ``--all`` does), typed by the rosbags typestore.

@@ -21,7 +21,9 @@ import numpy as np
 
 from . import perturb as P
 
-SCRIPTS_DIR = Path(__file__).resolve().parents[1]
+#: the folder flip_tools is in, put on the Ray workers' PYTHONPATH: the workers of a joined cluster
+#: may run without this venv's editable install of it
+TOOLS_DIR = Path(__file__).resolve().parents[1]
 #: Ray's smallest object store: a sample's result is a few hundred bytes
 OBJECT_STORE_BYTES = 80 * 1024 ** 2
 #: results are written when this many are pending or this long after the last write (s)
@@ -183,7 +185,7 @@ def start_ray(address: str | None, workers: int | None) -> int:
     import logging
 
     import ray
-    pythonpath = os.pathsep.join(p for p in (str(SCRIPTS_DIR), os.environ.get("PYTHONPATH")) if p)
+    pythonpath = os.pathsep.join(p for p in (str(TOOLS_DIR), os.environ.get("PYTHONPATH")) if p)
     common = dict(runtime_env={"env_vars": {"PYTHONPATH": pythonpath}}, log_to_driver=False,
                   logging_level=logging.WARNING)
     if address is None:
