@@ -16,7 +16,7 @@ TF2_MSG_SRCS := $(wildcard $(TF2_MSGS)/msg/*.msg) $(TF2_MSGS)/CMakeLists.txt $(T
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test clean-venv
+.PHONY: setup demo test test-fast clean-venv
 setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-pkgs $(VENV)/.stamp-tools
 
 # Debian packages: a C++ toolchain for flip_msgs, GL libraries for offscreen rendering, Debian's
@@ -78,6 +78,10 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest tests -q
+
+# the unit tier (tests/unit: no ROS graph, no long simulation), under a minute
+test-fast: setup
+	$(PY) -m pytest tests/unit -q
 
 clean-venv:
 	rm -rf $(VENV)

@@ -7,7 +7,7 @@ Started at a graph run's start time (its jumping reference's), with ``node_state
 run to the bit: the controller reads the state the simulator publishes as tsc_node reads it
 (:class:`NodeStateReader`: ``Simulator.state_into`` into the serialized /joint_states and /odom,
 ``StateConverter.from_cdr`` from their bytes) at the step's stamp (:func:`stamp`), events and
-references carry stamps as the nodes' messages do (tests/test_graph_flips.py compares a graph
+references carry stamps as the nodes' messages do (tests/graph/test_graph_flips.py compares a graph
 backflip's every command).  By default it reads it with ``StateConverter.from_simulator`` (the same
 numbers through ``from_ros``, whose numpy dot normalises the quaternion by the BLAS kernel's summation:
 the same bits as tsc_node's only under a kernel that sums as ``from_cdr`` does)."""

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-GRID = Path(__file__).resolve().parent.parent / "scripts" / "bench_planner_grid.py"
+GRID = Path(__file__).resolve().parents[2] / "scripts" / "bench_planner_grid.py"
 KERNELS = ("default", "Haswell", "Prescott")
 #: what a rejection may name: physical limits (and the modelling limits of the transcription)
 LIMITS = {"knee torque–speed envelope", "knee torque", "leg force limit", "flywheel torque (flight)",

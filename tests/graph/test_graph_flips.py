@@ -7,7 +7,7 @@ process, lockstep), judged from the recorded bag: `scripts/flip run`.
   judged from /odom in the bag, the pelvis turns one whole somersault in the air, backwards resp.
   forwards, and touches down upright.  Whether it then stands is not asserted here: the landings
   stand up in part of the runs only (start times differ with the request's wall timing; see the
-  README's results); tests/test_offline_flip.py checks a landing deterministically offline.
+  README's results); tests/offline/test_offline_flip.py checks a landing deterministically offline.
 * The offline harness (tests/offline_flip.py) started at the backflip's start time reproduces it to
   the bit: every recorded command and pelvis position, and the contact events."""
 import json

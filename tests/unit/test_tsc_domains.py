@@ -345,7 +345,7 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     frontflip from 0.98 s offline: kept at 1, the flywheel held the COM ahead of the toes while
     H_pitch grew to 112 kg*m^2/s, and the robot was not at rest after 10 s).  On the Python targets,
     whose foot anchors are attributes to move; the compiled ones give the same weights to the bit
-    (tests/test_tsc_native.py)."""
+    (tests/unit/test_tsc_native.py)."""
     sim = Simulator(motor_speed_scale=3.0, flywheel_torque=260.0)
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=3.0, flywheel_torque=260.0,
                      compiled_targets=False)

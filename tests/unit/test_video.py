@@ -1,13 +1,11 @@
 """flip_tools.video: MuJoCo states rebuilt from bag arrays (/joint_states + /odom) equal the
 simulator's own qpos, and they render to a file."""
-
 import mujoco
 import numpy as np
 
-from flip_tools.video import qpos_from_bag
-
 from cassie_flip_sim.render import render_states
 from cassie_flip_sim.simulator import Simulator
+from flip_tools.video import qpos_from_bag
 
 
 def test_qpos_from_bag_arrays_reproduces_the_simulator_and_renders(tmp_path):

@@ -141,7 +141,7 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
     import subprocess
     import sys
     from pathlib import Path
-    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_landings.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
     r = subprocess.run([sys.executable, str(script), "--kinds", kind, "--starts", "0.5", "--seconds", "2.45",
                         "--jobs", "1", *args], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -170,7 +170,7 @@ def test_bench_landings_at_rest_is_the_verdicts_check():
     speed and angular speed below their limits over the last 0.5 s, whatever came before."""
     import importlib.util
     from pathlib import Path
-    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_landings.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
     spec = importlib.util.spec_from_file_location("bench_landings", script)
     bl = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bl)

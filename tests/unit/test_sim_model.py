@@ -14,7 +14,7 @@ from cassie_flip_sim.motor_limits import MotorLimits, torque_bounds
 
 pin = pytest.importorskip("pinocchio")
 
-REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "agility_cassie" / "cassie.xml"
+REFERENCE = Path(__file__).resolve().parents[3] / "shared" / "reference" / "agility_cassie" / "cassie.xml"
 
 
 @pytest.fixture(scope="module")

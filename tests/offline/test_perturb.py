@@ -1,15 +1,13 @@
 """flip_tools.perturb: each knob changes the simulated robot (and only it) as specified; a sample's
 record gives the same result every time; unknown knobs and misplaced values are refused."""
-
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from cassie_flip_sim.contacts import ContactEvent, Event
 from flip_tools import offline
 from flip_tools import perturb as P
-
-from cassie_flip_sim.contacts import ContactEvent, Event
 
 
 def built(flip="A", **knobs):

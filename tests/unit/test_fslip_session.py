@@ -10,7 +10,7 @@ from fslip_planner import plan as P
 from fslip_planner.landing import LandingProblem
 
 # flips of the somersault robot down from a 0.5 m platform (the published robot cannot turn a flip in
-# the flight its knees give it: tests/test_fslip_feasibility.py)
+# the flight its knees give it: tests/unit/test_fslip_feasibility.py)
 FLIP = dict(platform_height=0.5, apex_height=1.2, motor_speed_scale=3.0, flywheel_torque=260.0)
 
 

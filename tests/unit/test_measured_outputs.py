@@ -4,12 +4,11 @@ from pathlib import Path
 
 import numpy as np
 
-from flip_tools.bag import BagData
-from flip_tools.measured import measured_outputs
-
 from cassie_flip_sim.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from cassie_flip_sim.urdf import export_urdf
+from flip_tools.bag import BagData
+from flip_tools.measured import measured_outputs
 
 
 def test_measured_outputs_match_the_simulator():

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 from flip_tools import perturb as P
 from flip_tools import sweep as S
 from flip_tools import sweep_report as R

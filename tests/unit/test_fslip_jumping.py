@@ -10,7 +10,7 @@ from fslip_planner import jumping as Jm
 from fslip_planner import plan as P
 
 # the somersault robot (leg motors x3, 260 N·m flywheel): the published robot's flywheel cannot turn a
-# flip in the flight its knees give it (tests/test_fslip_feasibility.py)
+# flip in the flight its knees give it (tests/unit/test_fslip_feasibility.py)
 ROBOT = dict(motor_speed_scale=3.0, flywheel_torque=260.0)
 CASES = {"backflip": dict(forward_distance=0.0, apex_height=1.3, **ROBOT),
          "frontflip": dict(forward_distance=1.0, apex_height=1.3, **ROBOT),
