@@ -17,8 +17,8 @@ TF2_MSG_SRCS := $(wildcard $(TF2_MSGS)/msg/*.msg) $(TF2_MSGS)/CMakeLists.txt $(T
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test clean-venv
-setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-transport $(VENV)/.stamp-pkgs
+.PHONY: setup demo test test-fast clean-venv
+setup: $(VENV)/.stamp-system $(VENV)/.stamp-deps $(VENV)/.stamp-msgs $(VENV)/.stamp-tf2-msgs $(VENV)/.stamp-transport $(VENV)/.stamp-pkgs $(VENV)/.stamp-tools
 
 # Debian packages: a C++ toolchain for flip_msgs, GL libraries for offscreen rendering, Debian's
 # python3.11 with venv and headers.
@@ -69,6 +69,12 @@ $(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(VENV)/.stamp-transport $(foreach p,$(
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))
 	touch $@
 
+# flip_tools (tools/): the `flip` command (.venv/bin/flip; scripts/flip runs the same) and the library the
+# bench scripts and tests import; editable, so a change to its sources needs no reinstall
+$(VENV)/.stamp-tools: $(VENV)/.stamp-deps tools/pyproject.toml
+	$(PIP) install -q --no-build-isolation --no-deps -e tools
+	touch $@
+
 # the design-study robot the flips land on today (--robot cassie-legs3-fw260: leg motors x3, 260 N*m
 # flywheel motor; apex 1.3 m), not the paper's robot (docs/robots.md); exit 1 of `flip run`
 # = the robot did not land (the run itself worked: bag, summary, plots are in runs/demo); any other
@@ -80,6 +86,10 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest tests -q
+
+# the unit tier (tests/unit: no ROS graph, no long simulation), under a minute
+test-fast: setup
+	$(PY) -m pytest tests/unit -q
 
 clean-venv:
 	rm -rf $(VENV)

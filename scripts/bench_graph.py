@@ -45,7 +45,6 @@ import time
 from pathlib import Path
 
 FLIP = Path(__file__).resolve().parent / "flip"
-sys.path.insert(0, str(FLIP.parent))
 
 
 ZERO_TICK_TSC = FLIP.parent / "stand_ins" / "zero_tick_tsc_node.py"
@@ -118,7 +117,7 @@ def sim_loop_us(log: Path) -> dict:
 
 def cpu_per_step_us(log: Path) -> dict:
     """{'main thread': us, 'other threads': us} per step from a node's 'cpu per step (mean us): ...' line
-    (cassie_flip_sim.lockstep.cpu_per_step_line)."""
+    (flip_transport.lockstep.cpu_per_step_line)."""
     return log_line_us(log, "cpu per step (mean us): ")
 
 

@@ -22,13 +22,11 @@ import math
 import statistics
 import sys
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from flip_tools.flip_request import request_distance  # noqa: E402
-from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: E402,F401
-from flip_tools.summary import LANDING_CRITERIA  # noqa: E402,F401
+from flip_tools.flip_request import request_distance
+from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
+from flip_tools.summary import LANDING_CRITERIA  # noqa: F401
+
 START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
 EXPECTED = EXPECTED_TURN
 

@@ -21,7 +21,6 @@ import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 FLIP = Path(__file__).resolve().parent / "flip"
 MODES = ("off", "live", "live+client")
 

@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 
 sys.path.append(str(Path(__file__).resolve().parents[1] / "ros_ws" / "src" / "cassie_flip_sim"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import mujoco  # noqa: E402
 

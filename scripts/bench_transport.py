@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The lockstep's floor without a simulator: two processes on one CPU trade the simulator's per-step
-messages over rclpy as sim_node and tsc_node do (cassie_flip_sim.lockstep: raw serialized messages,
+messages over rclpy as sim_node and tsc_node do (flip_transport.lockstep: raw serialized messages,
 a wait set, best-effort depth 1), and the answering one does nothing, busy work, or the real
 controller tick (``Controller.compute`` on recorded standing states, replayed in a loop).  Prints a
 table: round trip per step, the real-time factor that would give at 2 kHz, CPU time per step of each
@@ -9,7 +9,7 @@ process's main thread and its middleware threads, and the answering side's work 
 The state side publishes ``/odom`` and ``/joint_states`` (33 joints, as sim_node) and waits for the
 ``/motor_command`` of that step (re-sending after 50 ms); the command side wakes on
 ``/joint_states``, takes both, works, answers.  ``--io rcl`` (default) does that through rcl's C API
-as the nodes do by default (``cassie_flip_sim._rcl_io``), ``--io python`` through rclpy
+as the nodes do by default (``flip_transport._rcl_io``), ``--io python`` through rclpy
 (``lockstep.SubscriptionSet``).  Anything the real graph adds (MuJoCo's step, the state's
 conversion, the recorder's copies) comes on top of these rows.
 
@@ -23,9 +23,6 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 WARMUP = 500
 STATE_JOINTS = 33

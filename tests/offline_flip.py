@@ -1,16 +1,12 @@
-"""The offline flip runner for the tests: scripts/flip_tools/offline.py (simulator, planner and
+"""The offline flip runner for the tests: flip_tools.offline (simulator, planner and
 controller wired as the node graph wires them, in one process), re-exported under its old name, plus
 the tests' own check of a landed flip's end (:func:`assert_stands`)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools.offline import *  # noqa: E402,F401,F403
-from flip_tools.offline import (REQUEST_LEAD, NodeStateReader, measured, pelvis_state, run, stamp,  # noqa: E402,F401
+from flip_tools.offline import *  # noqa: F401,F403
+from flip_tools.offline import (REQUEST_LEAD, NodeStateReader, measured, pelvis_state, run, stamp,  # noqa: F401
                                 to_sampled)
 
 

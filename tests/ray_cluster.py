@@ -1,4 +1,4 @@
-"""A two-node Ray cluster on this machine, and a command run against it: for tests/test_sweep.py.
+"""A two-node Ray cluster on this machine, and a command run against it: for tests/offline/test_sweep.py.
 
     python tests/ray_cluster.py TEMP_DIR -- COMMAND ...   (COMMAND's "{address}" becomes HOST:PORT)
 

@@ -1,4 +1,4 @@
-"""launch_testing-style harness for pytest, on top of scripts/flip_tools (rclpy + subprocess).
+"""launch_testing-style harness for pytest, on top of flip_tools (rclpy + subprocess).
 
 Every test that uses `ros_graph` gets:
   - its own ROS_DOMAIN_ID (1..100), claimed with an flock so parallel pytest workers / other runs
@@ -13,18 +13,16 @@ from __future__ import annotations
 
 import itertools
 import os
-import sys
 import time
 from pathlib import Path
 from typing import Callable
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-
-from flip_tools.launcher import GraphWatcher, Launcher, ProcessDied, python_node_cmd, ros_args  # noqa: E402,F401
-from flip_tools.rosenv import DomainClaim, claim_domain, node_env, set_process_ros_env  # noqa: E402,F401
+from flip_tools.launcher import GraphWatcher, Launcher, ProcessDied, python_node_cmd, ros_args  # noqa: F401
+from flip_tools.rosenv import DomainClaim, claim_domain, node_env, set_process_ros_env  # noqa: F401
 
 set_process_ros_env()
+
+REPO = Path(__file__).resolve().parents[1]
 
 NODES_DIR = Path(__file__).resolve().parent / "nodes"
 FLIP = REPO / "scripts" / "flip"

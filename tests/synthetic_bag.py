@@ -4,14 +4,12 @@ types of docs/architecture.md, so summary/plots can be tested without a simulato
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from flip_tools.typestore import flip_typestore  # noqa: E402
+from flip_tools.typestore import flip_typestore
 
 G = 9.81
 MOTORS = ["left_hip_roll", "left_hip_yaw", "left_hip_pitch", "left_knee", "left_foot",

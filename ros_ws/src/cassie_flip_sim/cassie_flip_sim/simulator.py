@@ -8,7 +8,7 @@ state.  Same sequence as ``mj_step``; bit-for-bit repeatable.
 
 ``backend="native"`` (default) runs that step, the state of ``state_into`` and the body-contact test
 in C++ on the MuJoCo C API (``cassie_flip_sim._native``, native/step.cpp); ``"python"`` is the numpy
-reference.  The two step bit for bit alike (tests/test_sim_native.py).  sim_node's compiled loop
+reference.  The two step bit for bit alike (tests/unit/test_sim_native.py).  sim_node's compiled loop
 steps the native one from C++ (``native_loop_parts``, then ``note_native_steps``).
 """
 from __future__ import annotations

@@ -377,7 +377,7 @@ def standing_figures(flywheel: FlywheelSpec = "I") -> StandingFigures:
 class PinocchioMap:
     """Maps MuJoCo (qpos, qvel) to Pinocchio (q, v) and back, joint by joint by name.
 
-    Conventions (checked in tests/test_sim_model.py): quaternions wxyz (MuJoCo) vs xyzw
+    Conventions (checked in tests/unit/test_sim_model.py): quaternions wxyz (MuJoCo) vs xyzw
     (Pinocchio) for the free joint and the balls; free-joint linear velocity in the world frame
     (MuJoCo) vs the pelvis frame (Pinocchio); angular velocities of free and ball joints are
     local in both.  Hinges with ``ref`` (knees -45°, tarsi 58°): the angle is the same number in

@@ -3,7 +3,7 @@
 The lockstep's per-step messages are handled as bytes (flip_transport.lockstep): a
 ``*_layout(buf, names=None)`` function here finds the offsets of a message type's numeric fields,
 :func:`fields` makes numpy views of them, :class:`MessageReader` keeps a layout while a stream's
-messages keep it.  The bag reader (scripts/flip_tools/bag.py) reads whole topics the same way.
+messages keep it.  The bag reader (tools/flip_tools/bag.py) reads whole topics the same way.
 """
 from __future__ import annotations
 

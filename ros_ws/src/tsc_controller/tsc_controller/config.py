@@ -59,11 +59,11 @@ class ControllerConfig:
     # QP solver (tsc.SOLVERS); daqp is the fastest on this QP, "proxqp" also works
     solver: str = "daqp"
     # the tick's dynamics, constraint elimination and task rows: "native" compiled (tsc_controller._native),
-    # "python" the numpy reference it is tested against (tests/test_tsc_native.py)
+    # "python" the numpy reference it is tested against (tests/unit/test_tsc_native.py)
     backend: str = "native"
     # native backend: the ground domains' per-tick targets (feet contact and anchors, momentum removal,
     # leg catch, COM and pelvis blends) in C++ (_native.GroundTargets) rather than their Python
-    # reference: the same torques to the bit (tests/test_tsc_native.py), a faster tick
+    # reference: the same torques to the bit (tests/unit/test_tsc_native.py), a faster tick
     compiled_targets: bool = True
     reg: float = 1e-4                 # weight of reg ||u||^2 in the QP (tsc module doc): keeps it strictly convex
     mu: float = 0.6                   # friction coefficient of the QP's friction pyramid at toe and heel

@@ -88,7 +88,7 @@ class GroundTargets:
     domain's entry blended to the standing pose, the pitch momentum's removal, the landing's leg
     catch), the feet's contact and anchors, and the swing outputs of a foot off the ground.  In Python,
     or compiled (``compiled``: _native.GroundTargets, ControllerConfig.compiled_targets), which gives
-    the same numbers to the bit (tests/test_tsc_native.py).
+    the same numbers to the bit (tests/unit/test_tsc_native.py).
 
     ``outputs`` (H_pitch, L, com, pelvis with the default gains) measure the state the targets start
     from; LANDING tracks a landing reference with them.  JUMPING continues the targets STANDING began

@@ -41,7 +41,7 @@ above, support S_j - S_1): T times the drifts is then the rows' drift.
 Backends: ``backend="native"`` (default) computes all of :meth:`Dynamics.update` (the Pinocchio terms,
 the point table, the constraint rows) in one call of the compiled extension ``tsc_controller._native``
 (native/tick.cpp), on this object's own Pinocchio model and data; ``backend="python"`` is the numpy
-implementation below, the reference the native one is tested against (tests/test_tsc_native.py).  With
+implementation below, the reference the native one is tested against (tests/unit/test_tsc_native.py).  With
 the native backend the per-tick arrays (Minv, Ag, P, Jp, ..., and the views ``constraints`` returns) are
 views of the compiled tick's buffers, rewritten by the next update: copy what must outlive the tick.
 """

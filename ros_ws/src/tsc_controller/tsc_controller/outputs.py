@@ -16,7 +16,7 @@ form their Jacobian as one combination of point Jacobian rows.
 ``native_spec(dyn)`` describes an output to the compiled task rows (``tsc_controller._native.TaskRows``,
 native/task.cpp, used by the TSC with the native backend): (kind, integer parameters, float parameters,
 dim); None = no compiled form (the TSC then evaluates the list in Python).  ``evaluate`` stays the
-reference (tests/test_tsc_native.py).
+reference (tests/unit/test_tsc_native.py).
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 // the leg catch (_leg_catch, leg_catch) and the quintic blends of COM and pelvis from the state at
 // the domain's entry to the standing targets (targets, quintic).  The same operations in
 // the same order as those Python floats (built with -ffp-contract=off): the same numbers, checked on
-// whole offline flips against the Python path (tests/test_tsc_native.py).
+// whole offline flips against the Python path (tests/unit/test_tsc_native.py).
 //
 // The entry anchors (values and rates at entry, targets, durations) stay computed by the Python
 // side (once per domain entry) and are handed over with begin(); the results are written to buffers

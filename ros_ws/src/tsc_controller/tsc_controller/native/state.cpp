@@ -6,7 +6,7 @@
 // normalised to ``convert``: numpy's norm is BLAS's dot.  ``convert_cdr`` reads the same arrays
 // straight from the serialized /joint_states and /odom (a layout set once, checked per message) and
 // normalises the quaternion itself, as OpenBLAS's dot of four doubles rounds: x0*x0, then a fused
-// multiply-add per element (the controller node's per-step path; tests/test_tsc_domains.py).
+// multiply-add per element (the controller node's per-step path; tests/unit/test_tsc_domains.py).
 #include <pinocchio/fwd.hpp>
 
 #include <pinocchio/spatial.hpp>

@@ -1,0 +1,51 @@
+"""flip removes the Fast DDS shared-memory files that killed processes leave in /dev/shm, and
+nothing a live process holds (flip_tools.shm.clean_zombies, called when a graph closes)."""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from flip_tools.shm import SHM_DIR, clean_zombies
+
+NODE = ("import rclpy, time; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node('shm_probe'); "
+        "n.create_publisher(String, '/shm_probe', 10); print('up', flush=True); time.sleep(120)")
+
+
+def start_node(domain):
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    p = subprocess.Popen([sys.executable, "-c", NODE], env=env, stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "up"
+    time.sleep(1.0)
+    return p
+
+
+def segments():
+    """Participant segments (not ports, not their _el lock files)."""
+    return {f.name for f in SHM_DIR.glob("fastrtps_*")
+            if not f.name.startswith("fastrtps_port") and not f.name.endswith("_el")}
+
+
+def test_files_of_a_killed_process_are_removed_those_of_a_live_one_kept():
+    clean_zombies()
+    before = segments()
+    victim = start_node(93)
+    mine = segments() - before
+    assert mine, "the node made no shared-memory segment"
+    victim.send_signal(signal.SIGKILL)
+    victim.wait(10)
+    assert mine <= segments()                               # left behind by the kill
+    alive = start_node(94)
+    try:
+        theirs = segments() - before - mine
+        assert theirs
+        report = clean_zombies()
+        assert not (mine & segments()) and report["files"] >= 2 * len(mine) and report["bytes"] > 0
+        assert theirs <= segments()                          # held by a live process: kept
+        assert all(Path(SHM_DIR, f"{s}_el").exists() for s in theirs)
+    finally:
+        alive.kill()
+        alive.wait(10)
+    clean_zombies()
+    assert not (theirs & segments())

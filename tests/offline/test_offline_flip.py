@@ -1,0 +1,214 @@
+"""Whole flips on the full robot without ROS (tests/offline_flip.py wires simulator, planner and
+controller as the node graph does): jump planned by the FSLIP planner, flight with the planned pelvis
+pitch, landing, standing.  The robot is the somersault robot of the README: leg motors' no-load speeds
+x3 and a 260 N*m flywheel motor, apex 1.3 m (0.52-0.58 s of flight).  With the published leg motors no
+flip fits its flight time; with the 195 N*m flywheel the frontflip's planned turn does not (the
+flywheel saturates and the body over-rotates or the legs fold).
+
+Landing tallies (scripts/bench_landings.py) are in docs/measurements.md; the start time below lands
+the backflip and the frontflip (flip A falls from it: xfail below), and the tests guard that the
+pipeline keeps doing so."""
+import math
+
+import numpy as np
+import pytest
+
+import offline_flip as of
+from cassie_model.model import export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from tsc_controller import Controller
+
+SCALE = 3.0
+FLYWHEEL_TORQUE = 260.0
+
+
+def robot():
+    sim = Simulator(motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    return sim, ctl
+
+
+@pytest.fixture(scope="module")
+def backflip():
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    r = of.run("backflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10,
+               apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    r["z_stand"] = z_stand
+    return r
+
+
+def test_backflip_touches_down_upright_after_one_turn(backflip):
+    ev, t, pitch = backflip["events"], backflip["t"], backflip["pitch"]
+    lo = next(tt for k, tt in ev if k == 0)
+    td = next(tt for k, tt in ev if k == 1 and tt > lo)
+    assert td - lo > 0.45                                   # the planned flight, not a stumble
+    i = np.searchsorted(t, td)
+    assert pitch[i] == pytest.approx(-2 * math.pi, abs=0.15)
+    rate = (pitch[i] - pitch[i - 2]) / (t[i] - t[i - 2])
+    assert abs(rate) < 2.5
+
+
+def _axis_tilt_at_t1(r):
+    """Degrees between the pelvis y axis and world y at the end of the tuck (T1 after lift-off)."""
+    lo, ref = next((t, ref) for t, ref in r["references"] if ref.domain == 2)     # the FLIGHT reference
+    T1 = ref.parameters["T1"]
+    return math.degrees(r["axis_tilt"][np.searchsorted(r["t"], lo + T1)])
+
+
+def _nudged_backflip(axis_weight=None):
+    """The backflip up to 0.5 s after its lift-off, its pelvis given a roll impulse (1 N*m*s about
+    world x over 20 ms) at the lift-off: the transverse disturbance the flight has to hold against."""
+    sim, ctl = robot()
+    if axis_weight is not None:
+        ctl.flight.o_axis.weight = axis_weight
+    pelvis = sim.model.body("pelvis").id
+    st = {"lo": None}
+
+    def nudge(sim, ctl, u, info):
+        if st["lo"] is None and info["domain"] == 2:
+            st["lo"] = sim.time
+        on = st["lo"] is not None and sim.time < st["lo"] + 0.02
+        sim.data.xfrc_applied[pelvis, 3] = 50.0 if on else 0.0
+
+    return of.run("backflip", seconds=2.1, start=0.5, sim=sim, controller=ctl, every=10, on_step=nudge,
+                  apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+
+
+def test_flight_holds_the_flywheel_axis_through_the_tuck():
+    """The somersault turns about the robot's intermediate principal axis with the flywheel spinning
+    against the body: unstable.  The flight's axis output keeps the pelvis y axis on world y until
+    T1 after a roll impulse at the lift-off; without it the same backflip is tilted ten times more."""
+    held, loose = _axis_tilt_at_t1(_nudged_backflip()), _axis_tilt_at_t1(_nudged_backflip(axis_weight=0.0))
+    assert held < 5.0 and held < 0.2 * loose, (held, loose)          # measured: 2.8 and 35 deg
+
+
+def test_backflip_lands_and_stands(backflip):
+    sim, ctl = backflip["sim"], backflip["ctl"]
+    assert backflip["fell"] is None, f"body contact at t={backflip['fell']:.3f}"
+    of.assert_stands(sim, ctl, backflip["z_stand"])                      # ... flywheel momentum out
+    assert backflip["pitch"][-1] == pytest.approx(-2 * math.pi, abs=0.1)   # one whole turn, backwards
+
+
+def touch_down_state(r):
+    lo = next(t for k, t in r["events"] if k == 0)
+    return next(st for k, st in r["event_states"] if k == 1 and st.t > lo)
+
+
+def test_backflip_of_a_robot_facing_another_way_lands_as_one_facing_x(backflip):
+    """The somersault is in the plane the robot faces (the controller's heading frame in JUMPING and
+    FLIGHT): turned 0.3 rad about the vertical, the same backflip lands with the feet as far ahead of
+    the COM along its heading (with the jump and flight written in world x-z, 0.04 rad made it fall)."""
+    psi = 0.3
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    q = sim.standing_qpos.copy()
+    q[3:7] = [math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)]
+    sim.reset(q)
+    r = of.run("backflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10,
+               apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    of.assert_stands(sim, ctl, z_stand)
+    assert r["pitch"][-1] == pytest.approx(-2 * math.pi, abs=0.1)
+    ahead = lambda st, a: float((st.support_center - st.com)[:2] @ [math.cos(a), math.sin(a)])
+    assert ahead(touch_down_state(r), psi) == pytest.approx(ahead(touch_down_state(backflip), 0.0), abs=0.02)
+
+
+def test_frontflip_lands_and_stands():
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    r = of.run("frontflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.3,
+               motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ev, t, pitch = r["events"], r["t"], r["pitch"]
+    lo = next(tt for k, tt in ev if k == 0)
+    td = next(tt for k, tt in ev if k == 1 and tt > lo)
+    assert td - lo > 0.45
+    # one turn at touch-down; the pelvis may be past it (the foot placement outranks it late in the flight:
+    # ControllerConfig.somersault_beta_weight), the feet are where the landing needs them
+    assert pitch[np.searchsorted(t, td)] == pytest.approx(2 * math.pi, abs=0.25)
+    st = next(st for k, st in r["event_states"] if k == 1 and st.t > lo)
+    assert abs(st.com[0] - st.support_center[0]) < 0.14          # 0.16 m with the leg angles weighted as the pitch
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    of.assert_stands(sim, ctl, z_stand)
+    assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)                        # one whole turn, forwards
+
+
+@pytest.mark.xfail(strict=True, reason="from this start time flip A touches down 5 deg short of its turn and "
+                   "falls 2.8 s later; it lands from 11 of bench_landings' 15 start times")
+def test_forward_frontflip_lands_and_stands():
+    """Flip A (1 m forward, apex 1.2 m): it touches down at ~1.1 m/s forward with its feet only
+    ~0.14 m ahead of the COM.  The own landing's light H_pitch weight at first lets the flywheel take
+    the moment of the braking ground force; with the full weight from touch-down (the landing before)
+    it fell from each of the 15 start times of scripts/bench_landings.py (this one at 3.45 s)."""
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    x0 = float(sim.com_position()[0])
+    r = of.run("frontflip", seconds=12.0, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.2,
+               forward_distance=1.0, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ev, t, pitch = r["events"], r["t"], r["pitch"]
+    lo = next(tt for k, tt in ev if k == 0)
+    td = next(tt for k, tt in ev if k == 1 and tt > lo)
+    assert td - lo > 0.4
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert [k for k, tt in ev if tt > td] == []                     # no rebound off the ground
+    of.assert_stands(sim, ctl, z_stand)
+    assert pitch[-1] == pytest.approx(2 * math.pi, abs=0.1)
+    assert float(sim.com_position()[0]) - x0 > 0.8                  # asked: 1.0 m
+
+
+@pytest.mark.parametrize("args, kind, flight_min, turn", [
+    (("--states",), "backflip", 0.45, -360.0),
+    # flip C: off a 0.5 m platform, `flip run`'s 0.6 m forward distance; the drop lengthens the flight (~0.54 s in place)
+    (("--platform", "0.5", "--apex", "1.2"), "frontflip", 0.58, 349.0)])
+def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
+    """scripts/bench_landings.py (the offline landing-rate table) runs a flip and reports its touch-down."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
+    r = subprocess.run([sys.executable, str(script), "--kinds", kind, "--starts", "0.5", "--seconds", "2.45",
+                        "--jobs", "1", *args], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    row = next(ln for ln in r.stdout.splitlines() if ln.startswith(f"| {kind} | 0.50 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert float(cells[5]) > flight_min                             # the flight
+    assert float(cells[6]) == pytest.approx(turn, abs=10.0)         # one turn at touch-down
+    # 2.45 s: the robot is still catching the landing, so not at rest, and so not landed yet
+    assert cells[2:4] == ["no", "no"], row
+    assert r.stdout.splitlines()[-1].startswith(f'{{"{kind}": ')
+    if "--platform" in args:
+        assert "distance 0.6 m, platform 0.5 m" in r.stdout
+    if "--states" in args:
+        # lift-off measured (planned) and touch-down: a backflip leaves with the COM behind its feet,
+        # rising, with negative pitch momentum, and comes down falling
+        srow = [ln for ln in r.stdout.splitlines() if ln.startswith(f"| {kind} | 0.50 |")][1]
+        cells = [c.strip() for c in srow.strip("|").split("|")]
+        lo_ahead, plan_ahead = (float(x.strip("()")) for x in cells[2].split())
+        assert lo_ahead < 0.0 and plan_ahead < 0.0
+        assert float(cells[4].split()[0]) > 2.0 and float(cells[5].split()[0]) < -30.0
+        assert float(cells[8]) < -2.0
+
+
+def test_bench_landings_at_rest_is_the_verdicts_check():
+    """bench_landings' at-rest check is `flip run`'s (flip_tools.summary.LANDING_CRITERIA): the pelvis'
+    speed and angular speed below their limits over the last 0.5 s, whatever came before."""
+    import importlib.util
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
+    spec = importlib.util.spec_from_file_location("bench_landings", script)
+    bl = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bl)
+    t = np.arange(0.0, 3.0, 0.005)
+    still, turning = np.full(t.size, 0.01), np.full(t.size, 0.1)
+    assert bl.at_rest(t, still, turning)
+    late = still.copy()
+    late[t > 2.7] = 0.2                              # 0.2 m/s in the last 0.3 s (limit 0.15)
+    assert not bl.at_rest(t, late, turning)
+    early = still.copy()
+    early[t < 2.4] = 2.0                             # before the window: does not count
+    assert bl.at_rest(t, early, turning)
+    spin = turning.copy()
+    spin[-1] = 0.6                                   # angular speed 0.6 rad/s at the end (limit 0.5)
+    assert not bl.at_rest(t, still, spin)
+    assert bl.LANDING_CRITERIA["rest_window_s"] == 0.5
+    assert [bl.start_cell(x) for x in (0.5, 0.98, 1.555, 1.5555, 3.0)] == ["0.50", "0.98", "1.555", "1.5555", "3.00"]

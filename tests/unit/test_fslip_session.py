@@ -1,0 +1,319 @@
+"""FlipSession: jumping -> flight -> landing -> finished, with synthetic measured states."""
+import math
+
+import numpy as np
+import pytest
+
+from fslip_planner import flight as Fl
+
+from fslip_planner import plan as P
+from fslip_planner.landing import LandingProblem
+
+# flips of the somersault robot down from a 0.5 m platform (the published robot cannot turn a flip in
+# the flight its knees give it: tests/unit/test_fslip_feasibility.py)
+FLIP = dict(platform_height=0.5, apex_height=1.2, motor_speed_scale=3.0, flywheel_torque=260.0)
+
+
+def _consistent(ref, name, tol):
+    """d_value is the time derivative of value (central differences on the 2 ms grid)."""
+    v, d, _ = ref.column(name)
+    num = np.gradient(v, ref.t)
+    assert np.max(np.abs(num[2:-2] - d[2:-2])) < tol
+
+
+@pytest.fixture(scope="module")
+def flow():
+    s = P.FlipSession("backflip", **FLIP)
+    jr = s.jumping_reference()
+    s.started(10.0)
+    lo = s.result.lift_off
+    t_lo = 10.0 + jr.duration
+    st_lo = P.MeasuredState(t_lo, np.array([-0.08, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                            lo["momentum"], lo["beta"], -2.0)
+    fr = s.flight_reference(st_lo)
+    t_td = t_lo + fr.duration
+    # post-impact: a bit slower, under-rotated (some momentum left), off the nominal state
+    st_td = P.MeasuredState(t_td, np.array([0.05, 0.0, 0.95]), np.array([0.8 * lo["xdot"], 0.0, -0.9 * lo["zdot"]]),
+                            0.3 * lo["momentum"], -lo["beta"] + 0.05, 1.0)
+    lr = s.landing_reference(st_td)
+    return s, jr, fr, lr, st_lo, st_td
+
+
+def test_jumping_reference(flow):
+    s, jr, *_ = flow
+    assert jr.domain == 1 and jr.names == ["H_pitch", "L", "x_com", "phi_pitch"]
+    assert jr.value.shape == jr.d_value.shape == jr.dd_value.shape == (len(jr.t), 4)
+    assert np.all(np.diff(jr.t) > 0) and np.diff(jr.t).max() < 0.0025
+    H, dH, _ = jr.column("H_pitch")
+    assert H[0] == pytest.approx(0.0, abs=1e-9) and H[-1] == pytest.approx(s.result.lift_off["momentum"])
+    L, _, _ = jr.column("L")
+    assert L[0] == pytest.approx(s.robot.L0, abs=1e-6)
+    x, xd, _ = jr.column("x_com")
+    assert x[0] == pytest.approx(s.robot.com0[0], abs=1e-9)       # absolute world COM x
+    assert xd[-1] == pytest.approx(s.result.lift_off["xdot"], rel=1e-6)
+    for name, tol in (("H_pitch", 2.0), ("L", 0.05), ("x_com", 0.01), ("phi_pitch", 0.05)):
+        _consistent(jr, name, tol)
+    f = jr.figures
+    assert f["flight_time"] > 0.2 and f["peak_flywheel_speed"] > 100 and f["iterations"] > 0
+    assert jr.parameters["beta_liftoff"] == pytest.approx(-s.result.lift_off["beta"])
+
+
+def test_flight_reference(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert fr.domain == 2 and set(fr.names) == {"phi_pitch", "L"}
+    T = fr.parameters["flight_time"]
+    zd, h = st_lo.com_velocity[2], FLIP["platform_height"]
+    assert T == pytest.approx((zd + math.sqrt(zd ** 2 + 2 * 9.81 * h)) / 9.81, rel=1e-9)
+    assert fr.parameters["T1"] == pytest.approx(0.75 * T)
+    th, om, _ = fr.column("phi_pitch")
+    beta = s.result.lift_off["beta"]
+    assert th[0] == pytest.approx(st_lo.pelvis_pitch) and om[0] == pytest.approx(st_lo.pelvis_pitch_rate)
+    assert th[-1] == pytest.approx(-2 * math.pi - beta, abs=1e-9) and om[-1] == pytest.approx(0, abs=1e-9)
+    L, _, _ = fr.column("L")
+    L_lo = s.result.lift_off["L"]
+    T1 = fr.parameters["T1"]
+    depth = min(L_lo - 0.6, Fl.TUCK_MAX_ACC * (0.5 * T1) ** 2 / 5.77)      # tucked, as deep as its time allows
+    assert L.min() == pytest.approx(L_lo - depth, abs=1e-3) and depth > 0.03
+    _, _, Ldd = fr.column("L")
+    assert np.abs(Ldd).max() <= 1.01 * Fl.TUCK_MAX_ACC
+    i1 = np.searchsorted(fr.t, fr.parameters["T1"])
+    np.testing.assert_allclose(L[i1:], L_lo, atol=1e-6)                    # extended again by T1
+    _consistent(fr, "phi_pitch", 0.05)
+    assert fr.figures["rotation_to_go"] == pytest.approx(th[-1] - th[0])
+
+
+def test_landing_reference_converges_to_rest(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert lr.domain == 3 and lr.names == jr.names
+    H, dH, _ = lr.column("H_pitch")
+    assert H[0] == pytest.approx(st_td.pitch_momentum, rel=1e-6)
+    assert abs(H[-1]) < 1e-6
+    L, Ld, _ = lr.column("L")
+    assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6) and abs(Ld[-1]) < 1e-3
+    x, xd, _ = lr.column("x_com")
+    assert x[0] == pytest.approx(st_td.com[0], abs=1e-9) and abs(xd[-1]) < 1e-6
+    assert 0 < lr.figures["solve_time"] < 1.0
+
+
+def test_landing_is_planned_from_where_the_feet_came_down():
+    """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
+    reference ends over those feet: two touch-downs that differ only in where the feet are get
+    landings that end 0.12 m apart, each over its own feet.  Without a support centre the lift-off's
+    lean is mirrored; one beyond MAX_TOUCHDOWN_LEAN is planned from that lean."""
+    def landing(support_x):
+        s = P.FlipSession("frontflip", **FLIP)
+        s.jumping_reference()
+        s.started(0.0)
+        lo = s.result.lift_off
+        s.flight_reference(P.MeasuredState(1.0, np.array([0.0, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                                           lo["momentum"], lo["beta"], 0.0))
+        sc = None if support_x is None else np.array([support_x, 0.0, 0.02])
+        st = P.MeasuredState(1.5, np.array([0.80, 0.0, 0.95]), np.array([lo["xdot"], 0.0, -lo["zdot"]]),
+                             lo["momentum"], -lo["beta"], 0.0, support_center=sc)
+        x0 = s._touchdown_state(st)
+        lr = s.landing_reference(st)
+        x, _, _ = lr.column("x_com")
+        r = math.hypot(lo["x"], lo["z"])
+        return x0, x, r, lo
+    x0_a, x_a, r, lo = landing(0.85)
+    x0_b, x_b, _, _ = landing(0.97)
+    assert x0_a[0] == pytest.approx(0.80 - 0.85) and x0_b[0] == pytest.approx(0.80 - 0.97)
+    assert math.hypot(x0_a[0], x0_a[1]) == pytest.approx(r)          # the leg keeps its lift-off length
+    assert x_a[0] == pytest.approx(0.80) and x_b[0] == pytest.approx(0.80)
+    assert x_a[-1] == pytest.approx(0.85, abs=0.02) and x_b[-1] == pytest.approx(0.97, abs=0.02)
+    x0_n, _, _, _ = landing(None)
+    assert x0_n[0] == pytest.approx(-r * math.sin(lo["beta"]))
+    x0_far, _, _, _ = landing(3.0)
+    assert x0_far[0] == pytest.approx(-r * math.sin(P.MAX_TOUCHDOWN_LEAN))
+
+
+def test_a_malformed_support_centre_is_refused():
+    s = P.FlipSession("frontflip", **FLIP)
+    with pytest.raises(ValueError, match="malformed"):
+        s.landing_reference(P.MeasuredState(1.5, np.array([0.8, 0.0, 0.95]), np.zeros(3), 0.0, 0.0, 0.0,
+                                            support_center=np.array([np.nan, 0.0, 0.0])))
+
+
+def test_finished_sequence(flow):
+    s, jr, fr, lr, st_lo, st_td = flow
+    assert not s.finished(st_td.t + 0.5 * lr.duration)
+    assert s.finished(st_td.t + lr.duration + 1e-3)
+    fresh = P.FlipSession("hop")
+    fresh.jumping_reference()
+    fresh.started(0.0)
+    assert not fresh.finished(0.1)
+    assert fresh.finished(fresh.result.solution.T + 1.0)     # never lifted off: abandoned
+
+
+def test_landing_warm_resolves_perturbed_states():
+    robot = P._Robot.get("I")
+    lp = LandingProblem(robot.params, robot.L0)
+    b, r = 0.08, 0.85
+    x0 = np.array([-r * math.sin(b), r * math.cos(b), 0.4, -1.6, -40.0])
+    cold = lp.solve(x0, warm=False)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        xp = x0 + rng.normal(0, 1, 5) * [0.01, 0.01, 0.1, 0.1, 2.0]
+        sol = lp.solve(xp)
+        assert sol.status == "Solve_Succeeded"
+        np.testing.assert_allclose(sol.X[0], xp, atol=1e-8)
+        np.testing.assert_allclose(sol.X[-1, 2:], 0.0, atol=1e-6)
+        assert sol.U[-1, 0] == pytest.approx(robot.params.m * 9.81, rel=1e-6)
+        assert np.all(sol.Fz >= -1e-3) and np.all(np.abs(sol.Fx) <= 0.6 * sol.Fz + 1e-3)
+        assert sol.iterations < cold.iterations + 10
+
+
+def test_contact_events_outside_the_flip_are_ignored():
+    s = P.FlipSession("backflip", **FLIP)
+    s.jumping_reference()
+    s.started(5.0)
+    st = P.MeasuredState(0.1, np.array([0.0, 0.0, 0.94]), np.zeros(3), 0.0, 0.0, 0.0)
+    assert s.flight_reference(st) is None          # settling chatter before the jump starts
+    assert s.landing_reference(st) is None         # touch-down without a lift-off of this flip
+    assert s.t_liftoff is None and not s.finished(5.5)
+
+
+def test_landing_always_answers_even_from_a_failed_flip():
+    s = P.FlipSession("backflip", **FLIP)
+    s.jumping_reference()
+    s.started(0.0)
+    lo = s.result.lift_off
+    s.flight_reference(P.MeasuredState(1.0, np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.0, 1.6]),
+                                       lo["momentum"], lo["beta"], 0.0))
+    # the run that exposed it: touch-down with ẋ = −0.75 m/s, ż ≈ 0 and H = −118 kg·m²/s
+    lr = s.landing_reference(P.MeasuredState(1.3, np.array([0.0, 0.0, 0.9]), np.array([-0.75, 0.0, -0.01]),
+                                             -118.1, 0.3, -5.0))
+    assert lr is not None and lr.domain == 3 and lr.figures["fallback"] >= 1
+    H, _, _ = lr.column("H_pitch")
+    assert H[0] == pytest.approx(-118.1)
+    L, _, _ = lr.column("L")
+    assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6)
+    assert np.all(np.isfinite(lr.value)) and np.all(np.isfinite(lr.dd_value))
+
+
+def test_premature_liftoff_aborts_the_flip():
+    s = P.FlipSession("backflip", **FLIP)
+    jr = s.jumping_reference()
+    s.started(1.0)
+    lo = s.result.lift_off
+    # 0.11 s into a 1 s push, barely moving up (seen in a closed-loop run)
+    fr = s.flight_reference(P.MeasuredState(1.11, np.array([0.0, 0.0, 0.9]), np.array([0.0, 0.0, 0.05]),
+                                            5.0, -0.1, 0.0))
+    th, _, _ = fr.column("phi_pitch")
+    assert s.aborted and fr.figures["aborted"] == 1.0
+    assert th[-1] == pytest.approx(0.0) and np.all(np.abs(th) < 0.2)     # no flip asked
+    # the nominal lift-off is not aborted
+    s2 = P.FlipSession("backflip", **FLIP)
+    s2.jumping_reference()
+    s2.started(1.0)
+    fr2 = s2.flight_reference(P.MeasuredState(1.0 + jr.duration, np.array([0.0, 0.0, 1.0]),
+                                              np.array([lo["xdot"], 0.0, lo["zdot"]]), lo["momentum"], lo["beta"], 0.0))
+    assert not s2.aborted and fr2.column("phi_pitch")[0][-1] == pytest.approx(-2 * math.pi - lo["beta"])
+
+
+def test_flight_pitch_profile_respects_the_flywheel_torque():
+    """flight.trapezoid: pitch from (θ0, ω0) to θ_T at rest in T with |θ̈| ≤ a (the flywheel's torque
+    over the rest of the body's inertia); None when no such profile exists (then the cubic is used)."""
+    t = np.linspace(0.0, 0.8, 801)
+    th, om, acc = Fl.trapezoid(0.1, -1.0, -2 * math.pi + 0.1, 0.8, 60.0, t)
+    assert th[0] == pytest.approx(0.1) and om[0] == pytest.approx(-1.0)
+    assert th[-1] == pytest.approx(-2 * math.pi + 0.1, abs=1e-3) and om[-1] == pytest.approx(0.0, abs=1e-6)
+    assert np.abs(acc).max() <= 60.0 + 1e-9
+    np.testing.assert_allclose(np.gradient(th, t), om, atol=0.1)
+    # 2π from rest in 0.5 s needs at least 4·2π/0.5² ≈ 100 rad/s²
+    assert Fl.trapezoid(0.0, 0.0, -2 * math.pi, 0.5, 60.0, t) is None
+
+
+def _trapezoid_cruise_rate_scalar(y0, v0, y1, T, a):
+    """The cruise rate flight.trapezoid finds, the grid scanned one point at a time (its first form)."""
+    d = y1 - y0
+
+    def area(w):
+        t1, t3 = abs(w - v0) / a, abs(w) / a
+        if t1 + t3 > T:
+            return None
+        return 0.5 * (v0 + w) * t1 + w * (T - t1 - t3) + 0.5 * w * t3
+    span = 4.0 * abs(d) / T + abs(v0) + 1.0
+    grid = np.linspace(-span, span, 4001)
+    f = [None if area(w) is None else area(w) - d for w in grid]
+    for i in range(len(grid) - 1):
+        fa, fb = f[i], f[i + 1]
+        if fa is not None and fb is not None and fa * fb <= 0.0:
+            lo, hi = grid[i], grid[i + 1]
+            for _ in range(60):
+                m = 0.5 * (lo + hi)
+                if (area(m) - d) * fa <= 0.0:
+                    hi = m
+                else:
+                    lo, fa = m, area(m) - d
+            return 0.5 * (lo + hi)
+    return None
+
+
+def test_flight_pitch_profile_search_equals_the_scalar_scan():
+    """flight.trapezoid scans its grid of cruise rates with numpy (a flight plan calls it ~20 times:
+    the planner's answer at lift-off, for which the lockstep simulator holds): the same profile to the
+    bit as the point-by-point scan, over random turns, and None exactly where that finds none."""
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(400):
+        y0, v0 = rng.uniform(-1, 1), rng.uniform(-8, 8)
+        y1 = rng.choice([-1.0, 1.0]) * 2 * math.pi - rng.uniform(-0.5, 0.5)
+        T, a = rng.uniform(0.3, 0.7), rng.uniform(10.0, 150.0)
+        w = _trapezoid_cruise_rate_scalar(y0, v0, y1, T, a)
+        prof = Fl.trapezoid(y0, v0, y1, T, a, np.linspace(0.0, T, 201))
+        assert (prof is None) == (w is None)
+        if w is not None:
+            found += 1
+            # the cruise phase's rate is w exactly
+            assert w in set(prof[1].tolist())
+    assert 50 < found < 350
+
+
+# ---------------------------------------------------------------------------------------------
+# every plan starts from the measured state (issue 26, items 1 and 5)
+def _pelvis(robot, x=0.0, ground=0.0, dz=0.0, pitch=0.0, v=(0.0, 0.0, 0.0), w=(0.0, 0.0, 0.0)):
+    """The pelvis as /odom gives it for a robot standing at x on the ground at z = ``ground``."""
+    return P.PelvisState(3.0, np.array([x, 0.0, ground + robot.pelvis0[2] + dz]),
+                         np.array([0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)]),
+                         np.array(v, float), np.array(w, float))
+
+
+def test_a_plan_starts_where_the_robot_stands():
+    """A robot that stands 0.16 m ahead of its start (where a backflip landed) gets a jump whose COM
+    targets are those of the same plan from the start, moved by the same 0.16 m: its forward target
+    is relative to where it stands, not to where the robot was at the start."""
+    at_start = P.FlipSession("backflip", **FLIP)
+    ref0 = at_start.jumping_reference()
+    ahead = P.FlipSession("backflip", **FLIP)
+    robot = ahead.robot
+    ref1 = ahead.jumping_reference(_pelvis(robot, x=0.16, ground=FLIP["platform_height"]))
+    x0, _, _ = ref0.column("x_com")
+    x1, _, _ = ref1.column("x_com")
+    # the COM of the standing pose, carried by the measured pelvis
+    assert x1[0] == pytest.approx(0.16 + robot.com_in_pelvis[0], abs=1e-12)
+    assert x0[0] == pytest.approx(robot.com0[0], abs=1e-12)
+    assert np.allclose(x1 - x0, 0.16, atol=1e-9)
+    for name in ("H_pitch", "L", "phi_pitch"):
+        assert np.array_equal(ref1.column(name)[0], ref0.column(name)[0])
+
+
+@pytest.mark.parametrize("what, kw, words", [
+    ("lying", dict(dz=-0.8, pitch=math.radians(90)), "tilted 90.0 deg"),
+    ("leaning", dict(pitch=math.radians(15)), "tilted 15.0 deg"),
+    ("sunk", dict(dz=-0.2), "above the take-off ground"),
+    ("moving", dict(v=(0.5, 0.0, 0.0)), "moving at 0.50 m/s"),
+    ("turning", dict(w=(0.0, 1.0, 0.0)), "turning at 1.00 rad/s"),
+    ("off its platform", dict(ground=0.0), "above the take-off ground at z = 0.5 m"),
+])
+def test_a_robot_that_does_not_stand_is_refused(what, kw, words):
+    s = P.FlipSession("backflip", **FLIP)
+    kw = {"ground": FLIP["platform_height"], **kw}
+    with pytest.raises(P.InfeasibleRequest) as e:
+        s.jumping_reference(_pelvis(s.robot, **kw))
+    assert e.value.limit == "not_standing" and str(e.value).startswith("not_standing:"), what
+    assert words in str(e.value), str(e.value)
+    assert s.result is None                       # refused before any optimisation
+    # the same session plans once the robot stands
+    ok = s.jumping_reference(_pelvis(s.robot, ground=FLIP["platform_height"]))
+    assert ok.column("x_com")[0][0] == pytest.approx(s.robot.com_in_pelvis[0], abs=1e-12)

@@ -1,0 +1,362 @@
+"""Domain switching, references and state conversion of tsc_controller (no ROS)."""
+import math
+from fractions import Fraction
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cassie_model.model import PinocchioMap, export_mjcf
+from cassie_flip_sim.simulator import Simulator
+from tsc_controller import Controller, Domain, SampledReference, StateConverter, state_from_ros
+from tsc_controller.dynamics import Dynamics
+
+
+def test_sampled_reference_interpolates_and_clamps():
+    t = np.array([0.0, 0.1, 0.2])
+    val = np.array([[0.0, 1.0], [1.0, 2.0], [2.0, 4.0]])
+    r = SampledReference(Domain.JUMPING, t, ["a", "b"], val.ravel(), 2 * val, 3 * val, start_time=5.0)
+    s = r.sample(0.05)
+    assert s["a"] == pytest.approx((0.5, 1.0, 1.5)) and s["b"] == pytest.approx((1.5, 3.0, 4.5))
+    assert r.sample(-1.0)["b"][0] == 1.0 and r.sample(9.0)["b"][0] == 4.0
+    msg = SimpleNamespace(domain=1, t=list(t), output_names=["a", "b"], value=list(val.ravel()),
+                          d_value=[0.0] * 6, dd_value=[0.0] * 6,
+                          start_time=SimpleNamespace(sec=5, nanosec=500_000_000),
+                          plan_id=3, parameter_names=["T1"], parameter_values=[0.2])
+    m = SampledReference.from_msg(msg)
+    assert m.start_time == 5.5 and m.plan_id == 3 and m.parameters == {"T1": 0.2}
+    assert m.sample(0.1)["b"] == (2.0, 0.0, 0.0)
+
+
+def test_reference_from_msg_reads_it_as_tsc_node_does():
+    """SampledReference.from_msg is tsc_node's reading of a /fslip/reference: the start time is the
+    stamp's integer nanoseconds times 1e-9, as the tick's time is formed from a state's stamp (not
+    sec + 1e-9 nanosec, which differs in the last bit for this stamp), and samples that are not
+    len(t) x len(output_names), an empty derivative included, are refused (the node logs and ignores
+    the message)."""
+    def msg(**kw):
+        m = dict(domain=1, t=[0.0, 0.1], output_names=["L"], value=[0.8, 0.9], d_value=[0.0, 1.0],
+                 dd_value=[0.0, 0.0], start_time=SimpleNamespace(sec=1, nanosec=1_000_000), plan_id=1,
+                 parameter_names=[], parameter_values=[])
+        m.update(kw)
+        return SimpleNamespace(**m)
+    ref = SampledReference.from_msg(msg())
+    assert ref.start_time == 1_001_000_000 * 1e-9 and ref.start_time != 1 + 1e-9 * 1_000_000
+    assert ref.sample(0.05)["L"] == pytest.approx((0.85, 0.5, 0.0))
+    for bad in (dict(d_value=[]), dict(dd_value=[0.0]), dict(value=[0.8, 0.9, 1.0]), dict(domain=7)):
+        with pytest.raises(ValueError):
+            SampledReference.from_msg(msg(**bad))
+
+
+def test_state_converter_matches_pinocchio_map():
+    sim = Simulator()
+    dyn = Dynamics(export_mjcf())
+    rng = np.random.default_rng(0)
+    sim.data.qvel[:] = rng.normal(0, 0.5, sim.model.nv)
+    sim.data.qpos[3:7] = [0.9, 0.1, -0.2, 0.3]
+    sim.data.qpos[3:7] /= np.linalg.norm(sim.data.qpos[3:7])
+    import mujoco
+    mujoco.mj_forward(sim.model, sim.data)
+    q, v = StateConverter(dyn).from_simulator(sim)
+    q_ref, v_ref = PinocchioMap(sim.model, dyn.model).to_pin(sim.data.qpos, sim.data.qvel)
+    assert np.allclose(v, v_ref, atol=1e-12)
+    for jid in range(1, dyn.model.njoints):   # quaternions up to sign
+        a, n = dyn.model.idx_qs[jid], dyn.model.nqs[jid]
+        assert np.allclose(q[a:a + n], q_ref[a:a + n], atol=1e-9) or np.allclose(q[a:a + n], -q_ref[a:a + n], atol=1e-9)
+    # the message adapter (duck-typed JointState / Odometry)
+    p, quat = sim.pelvis_pose()
+    lin, ang = sim.pelvis_twist("local")
+    vec = lambda x: SimpleNamespace(x=x[0], y=x[1], z=x[2])  # noqa: E731
+    odom = SimpleNamespace(pose=SimpleNamespace(pose=SimpleNamespace(
+        position=vec(p), orientation=SimpleNamespace(x=quat[1], y=quat[2], z=quat[3], w=quat[0]))),
+        twist=SimpleNamespace(twist=SimpleNamespace(linear=vec(lin), angular=vec(ang))))
+    js = SimpleNamespace(name=sim.joint_names, position=list(sim.joint_positions()), velocity=list(sim.joint_velocities()))
+    q2, v2 = state_from_ros(StateConverter(dyn), js, odom)
+    assert np.allclose(q2, q) and np.allclose(v2, v)
+
+
+def _run(ctl, sim, t_end, on_tick=None):
+    sc = StateConverter(ctl.dyn)
+    doms = []
+    while sim.time < t_end - 1e-9:
+        if on_tick:
+            on_tick(sim.time)
+        for ev in sim.pop_events():
+            ctl.on_contact_event(int(ev.kind), ev.time)
+        q, v = sc.from_simulator(sim)
+        u, info = ctl.compute(q, v, sim.time)
+        sim.step(u)
+        doms.append(info["domain"])
+    return np.array(doms)
+
+
+def test_reference_without_liftoff_falls_back_to_standing():
+    """A JUMPING reference that ends without lift-off (a plan that is too weak, or a late/stale one)
+    returns the robot to the standing outputs instead of leaving it on the last sample."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    z0 = sim.pelvis_pose()[0][2]
+    ts = np.linspace(0, 0.6, 301)
+    sent = []
+
+    def tick(t):
+        if not sent and t >= 0.5:
+            Ls = ctl.cfg.L_stand
+            val = np.c_[Ls - 0.05 * np.sin(np.pi * ts / 0.6) ** 2, np.zeros_like(ts)]
+            ctl.set_reference(SampledReference(Domain.JUMPING, ts, ["L", "H_pitch"], val, start_time=0.6))
+            sent.append(1)
+    doms = _run(ctl, sim, 2.5, tick)
+    assert Domain.JUMPING in doms and doms[-1] == Domain.STANDING
+    assert Domain.FLIGHT not in doms
+    assert abs(sim.pelvis_pose()[0][2] - z0) < 0.01
+
+
+def test_stale_reference_is_ignored():
+    """A JUMPING reference whose time window has already passed never starts a jump."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    ctl.set_reference(SampledReference(Domain.JUMPING, [0.0, 0.1], ["L"], [0.5, 0.5], start_time=-1.0))
+    doms = _run(ctl, sim, 0.3)
+    assert np.all(doms == Domain.STANDING)
+
+
+def test_late_reference_is_not_joined_midway():
+    """A JUMPING reference that arrives after its start time (planner or transport late) is dropped:
+    the robot keeps standing rather than jumping into the middle of the plan."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    ts = np.linspace(0, 1.0, 101)
+    sent = []
+
+    def tick(t):
+        if not sent and t >= 0.2:
+            ctl.set_reference(SampledReference(Domain.JUMPING, ts, ["L"], np.full(101, 0.7), start_time=0.1))
+            sent.append(1)
+    doms = _run(ctl, sim, 0.4, tick)
+    assert np.all(doms == Domain.STANDING)
+    assert Domain.JUMPING not in ctl.refs
+
+
+def test_push_under_way_is_not_abandoned():
+    """JUMPING past its reference's end: back to STANDING after ``grace`` if the COM is not rising,
+    but kept (outputs held at the plan's end) while it rises fast, up to ``push_grace``; a LIFT_OFF
+    in that time enters FLIGHT."""
+    ctl = Controller(export_mjcf())
+    cfg, m = ctl.cfg, ctl.dyn.mass
+    ref = SampledReference(Domain.JUMPING, [0.0, 1.0], ["L"], [0.8, 0.95], start_time=0.5)
+
+    def state_after(late, vz, event=None):
+        ctl.refs = {Domain.JUMPING: ref}
+        ctl.domain, ctl._pending_event = Domain.JUMPING, event
+        ctl.dyn.hg_lin = np.array([0.0, 0.0, m * vz])   # COM momentum of the last update
+        ctl._switch(1.5 + late)
+        return ctl.domain
+    assert state_after(0.5 * cfg.grace, 0.0) == Domain.JUMPING
+    assert state_after(2.0 * cfg.grace, 0.0) == Domain.STANDING
+    assert cfg.push_grace > 2.0 * cfg.grace
+    assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising) == Domain.JUMPING
+    assert state_after(cfg.push_grace + 0.01, 2.0 * cfg.push_rising) == Domain.STANDING
+    assert state_after(2.0 * cfg.grace, 2.0 * cfg.push_rising, (0, 1.5 + 2.0 * cfg.grace)) == Domain.FLIGHT
+
+
+def test_controller_overrides_from_json():
+    """``config_overrides`` (tsc_node's ``controller`` parameter, ``flip run --controller``): gains are
+    merged into the defaults, domains given by name or number, and anything else is refused with
+    the reason, before a controller is built."""
+    from tsc_controller.config import DEFAULT_GAINS, JUMPING_GAINS, config_overrides
+    o = config_overrides('{"cop_margin_domains": {"JUMPING": 0.2, "3": 0.1}, "jumping_gains": {"H_pitch": [3, 10, 0]},'
+                         ' "landing_moment": 8, "per_foot_contact": false}')
+    assert o["cop_margin_domains"] == {int(Domain.JUMPING): 0.2, int(Domain.LANDING): 0.1}
+    assert o["jumping_gains"]["H_pitch"] == (3.0, 10.0, 0.0)
+    assert o["jumping_gains"]["com"] == JUMPING_GAINS["com"]
+    assert o["landing_moment"] == 8.0 and o["per_foot_contact"] is False
+    ctl = Controller(export_mjcf(), **o)
+    assert ctl.cfg.cop_margin_domains[int(Domain.JUMPING)] == 0.2 and ctl.cfg.gains == DEFAULT_GAINS
+    assert config_overrides("") == {}
+    # the numpy reference tick instead of the compiled one
+    assert Controller(export_mjcf(), **config_overrides('{"backend": "python"}')).dyn.native is None
+    for bad, why in [('{"backend": "fortran"}', "backend must be one of native, python"),
+                     ('{"solver": "gurobi"}', "solver must be one of"),('{"no_such": 1}', "unknown controller setting"), ("[1, 2]", "JSON object"),
+                     ("{oops", "not JSON"), ('{"gains": {"com": [1, 2]}}', "three numbers"),
+                     ('{"gains": {"nose": [1, 2, 3]}}', "unknown output"),
+                     ('{"cop_margin_domains": {"AIR": 0.1}}', "not a domain"),
+                     ('{"cop_margin_domains": {"1": 0.6}}', "below 0.5"),
+                     ('{"motor_speed_scale": 3}', "robot parameter"), ('{"landing_moment": "x"}', "number"),
+                     ('{"per_foot_contact": 1}', "true or false")]:
+        with pytest.raises(ValueError, match=why):
+            config_overrides(bad)
+
+
+def test_fallen_robot_is_only_damped():
+    """After a BODY_CONTACT event (a fall) every motor, the flywheel included, only damps its own
+    motion (u = -k w within the limits), whatever the domain and references say; before it, the same
+    state gets the QP's answer."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    q, v = sc.from_simulator(sim)
+    rng = np.random.default_rng(3)
+    v = v.copy()
+    v[ctl.dyn.motor_v] = rng.uniform(-3.0, 3.0, len(ctl.dyn.motor_v))
+    v[ctl.dyn.motor_v[-1]] = 300.0                       # a spinning flywheel
+    u_qp, info = ctl.compute(q, v, 0.0)
+    assert info["qp_status"] != "fallen"
+    ctl.on_contact_event(2, 0.0005)                    # flip_msgs/ContactEvent.BODY_CONTACT
+    u, info = ctl.compute(q, v, 0.001)
+    assert info["qp_status"] == "fallen" and ctl.fallen
+    w = v[ctl.dyn.motor_v]
+    lb, ub = ctl.limits.bounds(w)
+    assert np.allclose(u, np.clip(-ctl.cfg.fall_damping * w, lb, ub))
+    assert np.all(u * w <= 0.0) and u[-1] < -100.0       # braking, the flywheel hard
+
+
+def test_compiled_state_conversion_equals_the_numpy_one():
+    """StateConverter's compiled conversion (the controller's default) gives the (q, v) of its numpy
+    reference bit for bit, ball joints included, over states of a robot pushed about until it falls."""
+    sim = Simulator()
+    dyn = Dynamics(export_mjcf())
+    native, ref = StateConverter(dyn), StateConverter(dyn, backend="python")
+    assert native.backend == "native"
+    rng = np.random.default_rng(3)
+    for k in range(1500):
+        sim.step(rng.normal(0.0, 40.0, 11) if k % 300 < 100 else np.zeros(11))
+        (q1, v1), (q2, v2) = native.from_simulator(sim), ref.from_simulator(sim)
+        assert np.array_equal(q1, q2) and np.array_equal(v1, v2), k
+    with pytest.raises(ValueError):
+        StateConverter(dyn, backend="gpu")
+
+
+def _fma(a, b, c):
+    """a * b + c rounded once, as std::fma (Python 3.11 has no math.fma): exact in fractions, then
+    rounded to the nearest double."""
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+def _unit_quaternion(x):
+    """x / |x| in the operations of StateMap.convert_cdr (native/state.cpp): |x|^2 = x0 x0, then
+    fused multiply-adds of x1, x2, x3; no BLAS (numpy's dot sums in the order, and with or without
+    the fused multiply-adds, of the OpenBLAS kernel it runs on)."""
+    x = [float(c) for c in x]
+    n = math.sqrt(_fma(x[3], x[3], _fma(x[2], x[2], _fma(x[1], x[1], x[0] * x[0]))))
+    return np.array([c / n for c in x])
+
+
+#: |from_ros's base quaternion - convert_cdr's|: from_ros normalises with numpy's dot (BLAS ddot),
+#: which sums x.x in the order of the OpenBLAS kernel (OPENBLAS_CORETYPE): the fused chain of
+#: convert_cdr under SkylakeX and this AMD CPU's own, plain left to right under Haswell, two
+#: accumulators under Prescott.  |x|^2 then differs by an ulp or two and the unit components (<= 1)
+#: by at most 1 ulp of 1 (2.2e-16, measured over these 1,200 states under the four); 4 ulps of 1 is
+#: the bound, a quaternion off by 1e-6 (not normalised, or the old state's) is far outside it.
+QUAT_ATOL = 4 * np.finfo(float).eps
+
+
+def test_state_from_serialized_messages_equals_the_numpy_reading():
+    """StateConverter.from_cdr (the controller node's per-step path: (q, v) compiled straight from the
+    serialized /joint_states and /odom) gives what the numpy views + from_ros give, to the bit, the
+    quaternion's normalisation included (not quite unit, as a message may carry it: here compared
+    with its normalisation in convert_cdr's operations, as from_ros's numpy dot rounds x.x by the
+    BLAS kernel's summation; from_ros's own within QUAT_ATOL); a message of another layout (here a
+    longer frame id) is not read (None) until that layout is handed on."""
+    from flip_transport.lockstep import MessageReader, RawMessage, joint_state_layout, odometry_layout
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+    sim = Simulator()
+    conv = StateConverter(Dynamics(export_mjcf()))
+    n = len(sim.joint_names)
+    quat = slice(conv.base_q + 3, conv.base_q + 7)            # x, y, z, w as /odom's pose[3:]
+
+    def messages(frame):
+        js = RawMessage(JointState(name=list(sim.joint_names), position=[0.0] * n, velocity=[0.0] * n,
+                                   effort=[0.0] * n), joint_state_layout)
+        od = Odometry(child_frame_id="pelvis")
+        od.header.frame_id = frame
+        return js, RawMessage(od, odometry_layout)
+    js, od = messages("world")
+    read_js, read_od = MessageReader(joint_state_layout), MessageReader(odometry_layout)
+    assert conv.from_cdr(bytes(js.buf), bytes(od.buf)) is None            # no layout yet
+    rng = np.random.default_rng(5)
+
+    def step(js, od, k):
+        """The serialized messages of the next state, and their numpy reading: from_ros's (q, v) with
+        the base quaternion normalised as convert_cdr does (from_ros's own checked against it)."""
+        sim.step(rng.normal(0.0, 40.0, 11) if k % 300 < 100 else np.zeros(11))
+        f, o = js.fields, od.fields
+        sim.state_into(f["position"], f["velocity"], f["effort"], o["pose"], o["twist"])
+        o["pose"][3:] *= 1.0 + rng.normal(0.0, 1e-6)
+        jb, ob = bytes(js.buf), bytes(od.buf)
+        a, b = read_js(jb), read_od(ob)
+        q_ros, v_ref = conv.from_ros(read_js.names[0], a["position"], a["velocity"], b["pose"][:3], b["pose"][3:],
+                                     b["twist"][:3], b["twist"][3:])
+        q_ref = q_ros.copy()
+        q_ref[quat] = _unit_quaternion(b["pose"][3:])
+        np.testing.assert_allclose(q_ros, q_ref, rtol=0.0, atol=QUAT_ATOL, err_msg=str(k))
+        return jb, ob, (q_ref, v_ref)
+    for k in range(1200):
+        jb, ob, (q_ref, v_ref) = step(js, od, k)
+        if k == 0:
+            conv.use_cdr_layout(read_js.layout(), read_od.layout())
+        q, v = conv.from_cdr(jb, ob)
+        assert np.array_equal(q, q_ref) and np.array_equal(v, v_ref), k
+    js2, od2 = messages("world_frame")
+    jb, ob, (q_ref, _) = step(js2, od2, 0)
+    assert conv.from_cdr(jb, ob) is None
+    conv.use_cdr_layout(read_js.layout(), read_od.layout())
+    assert np.array_equal(conv.from_cdr(jb, ob)[0], q_ref)
+    assert conv.from_cdr(bytes(js.buf), bytes(od.buf)) is None            # the old layout is gone
+    assert StateConverter(Dynamics(export_mjcf()), backend="python").from_cdr(jb, ob) is None
+
+
+def test_quintic_of_short_vectors_equals_its_array_form():
+    """quintic's element-by-element path (1-D float vectors, the outputs of a tick) gives the same
+    numbers, to the bit, as its numpy form (which a 2-D input takes), with and without a start
+    velocity, before, inside and after the blend."""
+    from tsc_controller.profiles import quintic
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3):
+        for _ in range(300):
+            y0, y1, v0 = (rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3) for _ in range(3))
+            T, s = rng.uniform(0.05, 2.0), rng.uniform(-0.5, 2.5)
+            for v in (None, v0):
+                fast = quintic(y0, y1, T, s, v)
+                ref = quintic(y0[None], y1[None], T, s, None if v is None else v[None])
+                for f, r in zip(fast, ref):
+                    assert f.shape == (n,) and np.array_equal(f, np.asarray(r).reshape(-1)), (n, T, s, v)
+
+
+def test_compute_without_details_gives_the_same_torques():
+    """compute(details=False) (the controller node's call) leaves forces, ground reaction and errors
+    out of info and gives the same torques, to the bit, tick after tick."""
+    sim = Simulator()
+    full, lean = Controller(export_mjcf()), Controller(export_mjcf())
+    conv = StateConverter(full.dyn)
+    for _ in range(400):
+        q, v = conv.from_simulator(sim)
+        u, info = full.compute(q, v, sim.time)
+        u2, info2 = lean.compute(q, v, sim.time, details=False)
+        assert np.array_equal(u, u2)
+        assert "forces" in info and "grf" in info and "errors" in info
+        # the lean call keeps the elimination in the compiled tick: no forces to be had from it
+        with pytest.raises(ValueError, match="details=False"):
+            lean.tsc.last.forces(u2)
+        assert not {"forces", "grf", "errors"} & set(info2) and info2["qp_status"] == info["qp_status"]
+        sim.step(u)
+    assert sim.pelvis_pose()[0][2] > 0.8                  # still standing: the ticks were real ones
+
+
+def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
+    """STANDING's H_pitch weight is its own while the COM is over the feet and falls to
+    standing_H_edge_weight of it once the COM is well past the toes (Standing.H_weight;
+    frontflip from 0.98 s offline: kept at 1, the flywheel held the COM ahead of the toes while
+    H_pitch grew to 112 kg*m^2/s, and the robot was not at rest after 10 s).  On the Python targets,
+    whose foot anchors are attributes to move; the compiled ones give the same weights to the bit
+    (tests/unit/test_tsc_native.py)."""
+    sim = Simulator(motor_speed_scale=3.0, flywheel_torque=260.0)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=3.0, flywheel_torque=260.0,
+                     compiled_targets=False)
+    _run(ctl, sim, 0.05)
+    o, w0 = ctl.standing.outputs[0], ctl.standing.H_w0
+    assert ctl.domain == Domain.STANDING and o.weight == w0
+    x = float(ctl.dyn.com[0])
+    anchors = [a.copy() for a in ctl.ground.foot_anchor]
+    for dx, f in ((0.0, 1.0), (x - 0.10 - max(a[0] for a in anchors), ctl.cfg.standing_H_edge_weight)):
+        # the feet moved by dx: with the COM 0.1 m past the toes the weight is the edge weight's
+        ctl.ground.foot_anchor = [a + np.array([dx, 0, 0, dx, 0, 0]) for a in anchors]
+        ctl.standing.H_weight()
+        assert o.weight == pytest.approx(w0 * f)
+    ctl.ground.foot_anchor = anchors

@@ -1,0 +1,263 @@
+"""One isolated graph for a run: the recorder and the nodes as OS processes, a watcher node in this
+process; `run_graph` starts one, runs a subcommand's part in it and stops it whatever happened."""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from flip_tools.launcher import Interrupted, interrupt_latch
+from flip_tools.rosenv import claim_domain, set_process_ros_env
+
+from .common import EXIT_INFRA, EXIT_INTERRUPTED, log
+from .params import lockstep_sched, node_cmd, recorder_cmd
+
+
+class Graph:
+    """One isolated graph: recorder + nodes as OS processes, a watcher node in this process."""
+
+    def __init__(self, out: Path, domain: int | None, cpu_dma_latency: int | None, lockstep_sched: str):
+        from flip_tools.cpu_latency import CpuLatencyRequest
+        from flip_tools.launcher import LOCKSTEP_SCHED_ENV, GraphWatcher, Launcher
+        set_process_ros_env()
+        # held until close(): the lockstep's wake-ups of the recorder's CPU (flip_tools.cpu_latency)
+        self.cpu_latency = CpuLatencyRequest(cpu_dma_latency)
+        if self.cpu_latency.hold():
+            log(f"CPU wake-up latency held at {cpu_dma_latency} us (/dev/cpu_dma_latency) for the run")
+        elif cpu_dma_latency is not None:
+            log(f"CPU wake-up latency not held ({self.cpu_latency.reason}): the lockstep runs slower")
+        self.claim = claim_domain(domain if domain is not None else _env_domain())
+        self.domain = self.claim.domain_id
+        self.out = out
+        # the scheduling policy of the pinned simulator and controller (flip_transport.lockstep)
+        self.lockstep_sched = lockstep_sched
+        self.launcher = Launcher(self.domain, log_dir=out / "logs",
+                                 extra_env={LOCKSTEP_SCHED_ENV: self.lockstep_sched})
+        self.watcher = GraphWatcher(domain_id=self.domain, name="flip_cli")
+        self.node = self.watcher.node
+        self.sim_time = None
+        self.t_wall0 = time.time()
+        log(f"ROS_DOMAIN_ID={self.domain} (loopback); logs in {out / 'logs'}")
+
+    def start_recorder(self, timeout: float = 30.0):
+        from std_msgs.msg import String
+        # niced: the lockstep loop comes first; best-effort topics queue (depth 10,000) meanwhile
+        self.launcher.start("recorder", recorder_cmd(self.out / "bag", self.out / "record_stats.json"),
+                            nice=int(os.environ.get("FLIP_RECORDER_NICE", "10")))
+        self.recorder_status = {}
+
+        def on_status(m):
+            try:
+                self.recorder_status = json.loads(m.data)
+            except ValueError:
+                pass
+        self.node.create_subscription(String, "/flip_recorder/status", on_status, 10)
+        # the recorder subscribes to the contract topics at start-up: wait for it in the graph
+        self.watcher.wait_ready(nodes=["flip_recorder"], topics={"/clock": (0, 1), "/odom": (0, 1)},
+                                timeout=timeout, launcher=self.launcher)
+
+    def start_live(self, args, run_info: dict) -> None:
+        """--live: the Foxglove WebSocket server (flip_tools.live_node) as an optional process: if it
+        fails or dies the run goes on without it (run.json's "live" says which)."""
+        if not getattr(args, "live", False):
+            return
+        from flip_tools.live import start_live
+        overrides = dict(e.split("=", 1) for e in (getattr(args, "exe", None) or []))
+        info = start_live(self.launcher, args.live_port, overrides.get("live") or os.environ.get("FLIP_LIVE_CMD"),
+                          nice=int(os.environ.get("FLIP_RECORDER_NICE", "10")))
+        run_info["live"] = info
+        if "url" in info:
+            print(f"live: {info['url']} — open it in Foxglove", flush=True)
+        else:
+            log(f"live view failed, the run goes on without it: {info['error']}")
+
+    def release_live(self) -> None:
+        """The graph runs (the recorder has matched): the live view may read the streamed topics."""
+        from flip_tools.live import release_streams
+        release_streams(self.launcher)
+
+    def check_live(self) -> None:
+        """Says once, clearly, that the live view has stopped during the run (which goes on)."""
+        p = self.launcher.procs.get("live")
+        if p is not None and p.poll() is not None and not getattr(self, "_live_gone", False):
+            self._live_gone = True
+            log(f"live view stopped (exit {p.returncode}), the run goes on without it; "
+                f"last lines of {p.log_path}:\n{p.log_tail(5)}")
+
+    def wait_recorder_matched(self, topics, timeout: float) -> float:
+        """Until the recorder itself reports a matched publisher on every topic."""
+        t0 = time.monotonic()
+        end = t0 + timeout
+
+        def missing():
+            m = self.recorder_status.get("matched", {})
+            return [t for t in topics if m.get(t, 0) < 1]
+        while missing():
+            self.launcher.check_alive()
+            if time.monotonic() > end:
+                raise TimeoutError(f"recorder not matched on {missing()} after {timeout:.0f} s "
+                                   f"(status {self.recorder_status})")
+            self.spin(0.05)
+        return time.monotonic() - t0
+
+    def start_node(self, role: str, args, params: dict):
+        # no `-r __node:=` remap: it would rename every node of the process (sim_node also runs
+        # sim_node_services, planner_node planner_clock); the nodes' own names are the contract
+        return self.launcher.start(role, node_cmd(role, args), params=params)
+
+    def start_state_publisher(self, args):
+        """The robot's /tf and /tf_static (cassie_flip_sim.state_publisher), niced like the recorder:
+        it reads the lockstep's streams beside it, one of the subscribers the simulator waits for
+        (SIM_MIN_SUBSCRIBERS)."""
+        return self.launcher.start("state", node_cmd("state", args),
+                                   nice=int(os.environ.get("FLIP_RECORDER_NICE", "10")))
+
+    def follow_clock(self):
+        """Subscribe to /clock on a node no executor spins (no 2 kHz callbacks in this process);
+        `sim_now()` takes what is queued and keeps the newest."""
+        import rclpy
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        self._clock_node = rclpy.create_node("flip_cli_clock", context=self.node.context,
+                                             start_parameter_services=False, enable_rosout=False)
+        self._clock_sub = self._clock_node.create_subscription(
+            Clock, "/clock", lambda m: None, QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+    def follow_contact_events(self):
+        """Subscribe to /contact_events (latched, as sim_node offers it) on the clock's node;
+        `contact_events()` takes the queued ones as (event, sim time)."""
+        from flip_msgs.msg import ContactEvent
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        self._events_sub = self._clock_node.create_subscription(
+            ContactEvent, "/contact_events", lambda m: None,
+            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def contact_events(self) -> list[tuple[int, float]]:
+        sub, out = self._events_sub, []
+        with sub.handle:
+            while (r := sub.handle.take_message(sub.msg_type, False)) is not None:
+                out.append((int(r[0].event), r[0].header.stamp.sec + 1e-9 * r[0].header.stamp.nanosec))
+        return out
+
+    def sim_now(self):
+        sub = getattr(self, "_clock_sub", None)
+        if sub is not None:
+            with sub.handle:
+                while True:
+                    r = sub.handle.take_message(sub.msg_type, False)
+                    if r is None:
+                        break
+                    self.sim_time = r[0].clock.sec + 1e-9 * r[0].clock.nanosec
+        return self.sim_time
+
+    def spin(self, timeout: float):
+        self.watcher.spin_once(timeout)
+
+    def wait_recorder_drained(self, quiet_s: float = 1.0, timeout: float = 30.0) -> None:
+        """Until the recorder has written the last /clock step the simulator published (its status
+        carries the newest /clock stamp it recorded), or, when that cannot be known (no sim time
+        seen, a recorder without that field), until its message counts have stopped growing for
+        ``quiet_s``.  It is niced and queues behind the lockstep loop: on a loaded machine its
+        counts can stand still for a second while the tail of the run is still queued (measured:
+        the last 3 steps of a `flip stand` lost that way)."""
+        if "recorder" not in self.launcher.procs or self.launcher.procs["recorder"].poll() is not None:
+            return
+        final = self.sim_now()
+        final_ns = None if final is None else int(round(final * 1e9))
+        end = time.monotonic() + timeout
+        last, since = None, time.monotonic()
+        while time.monotonic() < end:
+            self.spin(0.1)
+            st = self.recorder_status
+            if final_ns is not None and "last_clock_ns" in st:
+                if st["last_clock_ns"] is not None and st["last_clock_ns"] >= final_ns:
+                    return
+                continue
+            counts = json.dumps(st.get("counts", {}), sort_keys=True)
+            if counts != last:
+                last, since = counts, time.monotonic()
+            elif time.monotonic() - since >= quiet_s:
+                return
+        log(f"WARNING: the recorder had not written the last step (sim t = {final}) after {timeout:.0f} s; "
+            f"status {self.recorder_status}")
+
+    def stop(self, order) -> dict:
+        # the recorder first gets what the nodes sent while they are still there (Fast DDS drops the
+        # samples of a writer that is gone: a recorder stalled at the end lost the run's tail), then
+        # the nodes stop (in the given order), the recorder last, once it has written what they sent
+        order = [n for n in order if n in self.launcher.procs]
+        self.check_live()
+        if sim_lingers(self):
+            self.wait_recorder_drained()
+        for n in order:
+            self.launcher.stop(n)
+        self.wait_recorder_drained()
+        report = self.launcher.stop_all(order=order + ["recorder"])
+        left = self.launcher.leftovers()
+        if left:
+            log(f"WARNING: processes left behind: {left}")
+        for n, r in report.items():
+            log(f"{n}: exit {r['returncode']} ({r['stopped_by']})")
+        return report
+
+    def close(self):
+        from flip_tools.shm import clean_zombies
+        try:
+            if getattr(self, "_clock_node", None) is not None:
+                self._clock_node.destroy_node()
+            self.watcher.close()
+        finally:
+            self.claim.release()
+            self.cpu_latency.release()
+            # shared-memory files of killed processes (this graph's or earlier ones')
+            self.shm_cleaned = clean_zombies()
+            if self.shm_cleaned["files"]:
+                log(f"removed {self.shm_cleaned['files']} shared-memory files of processes that are gone "
+                    f"({self.shm_cleaned['bytes'] / 1e6:.1f} MB)")
+
+
+def _env_domain():
+    v = os.environ.get("FLIP_ROS_DOMAIN_ID")
+    return int(v) if v else None
+
+
+def sim_lingers(graph: Graph) -> bool:
+    """sim_node (``linger``) says in its log that it ran its duration: a free-running sim can end
+    before this process has seen any of its /clock."""
+    path = graph.out / "logs" / "sim.log"
+    try:
+        return "lingering at sim t" in path.read_text(errors="replace")[-4000:]
+    except OSError:
+        return False
+
+
+def run_graph(args, out: Path, mode: str, run_info: dict, extra: dict, stop_order: list[str], body):
+    """A graph for ``out`` (--domain, --cpu-dma-latency, --lockstep-sched of ``mode``) in which
+    ``body(graph)`` runs and gives the exit code; every process is stopped afterwards (in
+    ``stop_order``, the recorder last) whatever happened.  An interrupt is exit 130, an error
+    (a node died, a timeout) exit 3 with ``extra["error"]``.  Returns (exit code, graph or None
+    when it could not be made, the processes' stop report)."""
+    interrupt_latch.arm()
+    graph, report, rc = None, {}, EXIT_INFRA
+    try:
+        graph = Graph(out, args.domain, args.cpu_dma_latency, lockstep_sched(args, mode))
+        run_info["ros_domain_id"] = graph.domain
+        run_info["cpu_dma_latency"] = graph.cpu_latency.info()
+        run_info["lockstep_sched"] = graph.lockstep_sched
+        rc = body(graph)
+    except Interrupted as e:
+        log(f"interrupted ({e}); stopping everything")
+        rc = EXIT_INTERRUPTED
+    except Exception as e:  # noqa: BLE001 - graph timeout, a node died, ...
+        log(f"ERROR: {e}")
+        extra["error"] = str(e)
+        rc = EXIT_INFRA
+    finally:
+        interrupt_latch.hold()
+        if graph is not None:
+            report = graph.stop(stop_order)
+            graph.close()
+            run_info["shm_cleaned"] = getattr(graph, "shm_cleaned", None)
+        interrupt_latch.disarm()
+    return rc, graph, report
