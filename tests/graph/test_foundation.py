@@ -120,8 +120,9 @@ def publish_odom(tn, x=0.0, z=None, pitch=0.0) -> dict:
 
 def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
     """The real planner_node reads the newest /odom at each request: none -> refused (no_state), a
-    fallen pelvis -> refused (not_standing), standing 0.16 m ahead of the start -> a JUMPING
-    reference whose COM targets start there (issue 26, items 1 and 5)."""
+    fallen pelvis -> refused (not_standing), standing still with the flywheel spinning -> refused
+    (not_standing), standing 0.16 m ahead of the start -> a JUMPING reference whose COM targets
+    start there (issue 26, items 1 and 5)."""
     from fslip_planner.plan import _Robot
     planner = str(Path(sys.executable).parent / "planner_node")
     ros_graph.start("planner", [planner, "--ros-args", "-p", "motor_speed_scale:=3.0", "-p",
@@ -140,6 +141,17 @@ def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
     assert "tilted 88.0 deg" in fallen.reason
 
     pose.update(x=0.16, z=float(robot.pelvis0[2]), pitch=0.0)
+    # standing still, its flywheel still spinning (a landing taking its momentum out): refused too
+    from sensor_msgs.msg import JointState
+    js_pub = tn.node.create_publisher(JointState, "/joint_states", 10)
+    wheel = {"speed": -300.0}
+    tn.node.create_timer(0.005, lambda: js_pub.publish(JointState(name=["flywheel"], position=[0.0],
+                                                                  velocity=[wheel["speed"]], effort=[0.0])))
+    spinning = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=60)
+    assert not spinning.accepted and spinning.reason.startswith("not_standing:"), spinning.reason
+    assert "flywheel spinning at 2865 rpm" in spinning.reason, spinning.reason
+
+    wheel["speed"] = 0.0
     ok = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=120)
     assert ok.accepted, ok.reason
     tn.spin_until(lambda: refs, what="the JUMPING reference")

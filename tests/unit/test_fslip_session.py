@@ -272,11 +272,12 @@ def test_flight_pitch_profile_search_equals_the_scalar_scan():
 
 # ---------------------------------------------------------------------------------------------
 # every plan starts from the measured state (issue 26, items 1 and 5)
-def _pelvis(robot, x=0.0, ground=0.0, dz=0.0, pitch=0.0, v=(0.0, 0.0, 0.0), w=(0.0, 0.0, 0.0)):
-    """The pelvis as /odom gives it for a robot standing at x on the ground at z = ``ground``."""
+def _pelvis(robot, x=0.0, ground=0.0, dz=0.0, pitch=0.0, v=(0.0, 0.0, 0.0), w=(0.0, 0.0, 0.0), flywheel=0.0):
+    """The pelvis as /odom gives it for a robot standing at x on the ground at z = ``ground``, its
+    flywheel at ``flywheel`` rad/s (/joint_states)."""
     return P.PelvisState(3.0, np.array([x, 0.0, ground + robot.pelvis0[2] + dz]),
                          np.array([0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)]),
-                         np.array(v, float), np.array(w, float))
+                         np.array(v, float), np.array(w, float), flywheel)
 
 
 def test_a_plan_starts_where_the_robot_stands():
@@ -305,6 +306,8 @@ def test_a_plan_starts_where_the_robot_stands():
     ("moving", dict(v=(0.5, 0.0, 0.0)), "moving at 0.50 m/s"),
     ("turning", dict(w=(0.0, 1.0, 0.0)), "turning at 1.00 rad/s"),
     ("off its platform", dict(ground=0.0), "above the take-off ground at z = 0.5 m"),
+    # after a somersault the pelvis is still while the landing takes the flywheel's momentum out
+    ("flywheel spinning", dict(flywheel=-2934 * math.pi / 30), "flywheel spinning at 2934 rpm"),
 ])
 def test_a_robot_that_does_not_stand_is_refused(what, kw, words):
     s = P.FlipSession("backflip", **FLIP)

@@ -132,6 +132,8 @@ def test_late_reference_is_not_joined_midway():
     doms = _run(ctl, sim, 0.4, tick)
     assert np.all(doms == Domain.STANDING)
     assert Domain.JUMPING not in ctl.refs
+    # and says so (tsc_node logs it): plan 0, its start, when it was dropped
+    assert len(ctl.dropped) == 1 and ctl.dropped[0][:2] == (0, 0.1) and ctl.dropped[0][2] >= 0.2
 
 
 def test_push_under_way_is_not_abandoned():

@@ -82,11 +82,13 @@ REQUEST_LEAD = 0.05
 
 
 def pelvis_state(sim: Simulator) -> PelvisState:
-    """The pelvis as /odom carries it (planner_node's PelvisState): pose, twist in pelvis axes."""
+    """The pelvis as /odom carries it (planner_node's PelvisState): pose, twist in pelvis axes; the
+    flywheel's speed as /joint_states does."""
     p, (w, x, y, z) = sim.pelvis_pose()
     lin, ang = sim.pelvis_twist("local")
+    fw = float(sim.joint_velocities()[list(sim.joint_names).index("flywheel")])
     return PelvisState(t=stamp(sim), position=np.array(p, float), orientation=np.array([x, y, z, w]),
-                       linear_velocity=lin, angular_velocity=ang)
+                       linear_velocity=lin, angular_velocity=ang, flywheel_speed=fw)
 
 
 def to_sampled(ref, start_time, plan_id=1) -> SampledReference:

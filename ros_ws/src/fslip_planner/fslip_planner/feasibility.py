@@ -183,11 +183,14 @@ def check_flight(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
 # ------------------------------------------------------------------------------- standing
 #: how near the standing state at rest the measured pelvis must be for a flip to be planned from it
 #: (InfeasibleRequest "not_standing" otherwise): tilt of its z axis, height above the take-off ground
-#: against the standing pose's, speed, angular rate
+#: against the standing pose's, speed, angular rate, and the momentum its flywheel still holds (kg m^2/s:
+#: a jump plan starts from zero pitch momentum; after a somersault the controller's landing takes the
+#: flywheel's out over seconds with the pelvis already still; its own bound is landing_H_done, 2)
 STAND_MAX_TILT = math.radians(10.0)
 STAND_HEIGHT_TOL = 0.05
 STAND_MAX_SPEED = 0.2
 STAND_MAX_RATE = 0.5
+STAND_MAX_FLYWHEEL_MOMENTUM = 2.0
 
 
 def rotation_xyzw(q):
@@ -201,7 +204,8 @@ def standing_com_x(state, robot, ground_z: float = 0.0) -> float:
     of ``robot``, a ``plan._Robot``, carried by the measured pelvis), where a jump plan starts;
     InfeasibleRequest (limit "not_standing") unless the pelvis is
     near the standing state at rest on the take-off ground at ``ground_z``: tilt, height above it,
-    speed and angular rate within the STAND_* bounds."""
+    speed and angular rate within the STAND_* bounds, and (when ``state.flywheel_speed`` is measured)
+    the flywheel's momentum."""
     vals = np.r_[state.t, np.ravel(state.position), np.ravel(state.orientation),
                  np.ravel(state.linear_velocity), np.ravel(state.angular_velocity)]
     if vals.size != 14 or not np.all(np.isfinite(vals)) or np.linalg.norm(state.orientation) < 1e-9:
@@ -222,6 +226,10 @@ def standing_com_x(state, robot, ground_z: float = 0.0) -> float:
         off.append(f"pelvis moving at {speed:.2f} m/s (at most {STAND_MAX_SPEED:g})")
     if rate > STAND_MAX_RATE:
         off.append(f"pelvis turning at {rate:.2f} rad/s (at most {STAND_MAX_RATE:g})")
+    w_fw = getattr(state, "flywheel_speed", None)
+    if w_fw is not None and not abs(robot.I_fw * w_fw) <= STAND_MAX_FLYWHEEL_MOMENTUM:
+        off.append(f"flywheel spinning at {abs(w_fw) * 30 / math.pi:.0f} rpm, {abs(robot.I_fw * w_fw):.1f} kg m^2/s "
+                   f"(at most {STAND_MAX_FLYWHEEL_MOMENTUM:g}): the landing is still taking its momentum out")
     if off:
         raise InfeasibleRequest(f"not_standing: the robot is not standing at rest at sim t = {state.t:.3f} s: "
                                 + "; ".join(off), "not_standing")

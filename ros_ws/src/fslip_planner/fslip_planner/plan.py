@@ -59,12 +59,14 @@ class MeasuredState:
 @dataclass
 class PelvisState:
     """The pelvis as ``/odom`` carries it: world position, orientation quaternion (x, y, z, w), and
-    linear and angular velocity in the pelvis frame (REP 105)."""
+    linear and angular velocity in the pelvis frame (REP 105); with the flywheel's speed."""
     t: float
     position: np.ndarray
     orientation: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
+    #: the flywheel joint's speed (rad/s, /joint_states); None: not measured
+    flywheel_speed: float | None = None
 
 
 @dataclass

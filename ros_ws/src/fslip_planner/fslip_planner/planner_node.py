@@ -28,6 +28,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .feasibility import rotation_xyzw
@@ -155,20 +156,29 @@ class PlannerNode:
         return getattr(self, '_last_clock', 0.0)
 
     def _measured_pelvis(self):
-        """The newest /odom as a PelvisState, or None if none came within STATE_TIMEOUT_S. The
-        subscription lives for this request only: a standing one would take 2,000 messages a second
-        here and add a reader to every step of the simulator."""
-        sub = self._clock_node.create_subscription(Odometry, '/odom', lambda _m: None, STREAM_QOS)
+        """The newest /odom as a PelvisState, with the flywheel's speed from /joint_states, or None if
+        no /odom came within STATE_TIMEOUT_S (the flywheel unmeasured if no /joint_states did). The
+        subscriptions live for this request only: standing ones would take 2,000 messages a second
+        each here and add readers to every step of the simulator."""
+        odom = self._clock_node.create_subscription(Odometry, '/odom', lambda _m: None, STREAM_QOS)
+        joints = self._clock_node.create_subscription(JointState, '/joint_states', lambda _m: None, STREAM_QOS)
         try:
             deadline = time.monotonic() + STATE_TIMEOUT_S
-            while time.monotonic() < deadline:
-                got = sub.handle.take_message(sub.msg_type, False)
+            pelvis = js = None
+            while time.monotonic() < deadline and (pelvis is None or js is None):
+                got = odom.handle.take_message(odom.msg_type, False) if pelvis is None else None
                 if got is not None:
-                    return pelvis_state(got[0])
+                    pelvis = pelvis_state(got[0])
+                got = joints.handle.take_message(joints.msg_type, False) if js is None else None
+                if got is not None:
+                    js = got[0]
                 time.sleep(0.002)
-            return None
+            if pelvis is not None and js is not None and 'flywheel' in js.name:
+                pelvis.flywheel_speed = float(js.velocity[list(js.name).index('flywheel')])
+            return pelvis
         finally:
-            self._clock_node.destroy_subscription(sub)
+            self._clock_node.destroy_subscription(odom)
+            self._clock_node.destroy_subscription(joints)
 
     def _publish(self, ref, start_time):
         msg = FlipReference()

@@ -624,6 +624,9 @@ class Controller:
         self._pitch_raw = None
         self._heading = None             # (heading, x, y) of the pelvis at the jump's start (_heading_frame)
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
+        #: JUMPING references not started, (plan id, its start time, t when it was dropped): one that
+        #: came after its start + max_late, or while the robot was not standing until then
+        self.dropped: list[tuple[int, float, float]] = []
 
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
@@ -669,6 +672,7 @@ class Controller:
                     self._enter(Domain.JUMPING, t)
                 else:                              # arrived (or was processed) too late: never start mid-plan
                     self.refs.pop(Domain.JUMPING, None)
+                    self.dropped.append((r.plan_id, r.start_time, t))
         elif d == Domain.JUMPING:
             r = self.refs.get(Domain.JUMPING)
             if ev is not None and ev[0] == LIFT_OFF:

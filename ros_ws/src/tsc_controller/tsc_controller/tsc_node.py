@@ -114,8 +114,13 @@ class TscNode:
             self.cpu0 = (time.process_time(), time.thread_time())
         q, v = self._state(js_buf, odom_buf)
         t0 = time.perf_counter()
+        n_dropped = len(self.controller.dropped)
         u, _ = self.controller.compute(q, v, k_ns * 1e-9, details=False)
         dt_us = (time.perf_counter() - t0) * 1e6
+        if len(self.controller.dropped) > n_dropped:
+            plan, start, t = self.controller.dropped[-1]
+            self.node.get_logger().warn(f'plan {plan}: jumping reference from t={start:.3f} s not started: '
+                                        f'the robot was not standing until t={t:.3f} s (at most {self.controller.cfg.max_late:g} s late)')
         self.tick_us.append(dt_us)
         cmd = self.cmd
         cmd.fields['step'][0] = k_ns // DT_NS
