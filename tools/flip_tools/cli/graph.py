@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import time
 from pathlib import Path
 
-from flip_tools.launcher import Interrupted, interrupt_latch
+from flip_tools.launcher import Interrupted, _killpg, interrupt_latch
 from flip_tools.rosenv import claim_domain, set_process_ros_env
 
 from .common import EXIT_INFRA, EXIT_INTERRUPTED, log
@@ -182,15 +183,30 @@ class Graph:
         log(f"WARNING: the recorder had not written the last step (sim t = {final}) after {timeout:.0f} s; "
             f"status {self.recorder_status}")
 
+    def _pause_controller(self) -> str | None:
+        """Stop the lockstep where it is before anything is stopped: the controller is paused
+        (SIGSTOP), the simulator waits for its command and sim time stands, so the recorder can
+        write the run's tail before the writers go (stopping the simulator while the recorder was
+        0.5 s of sim time behind lost that tail on a loaded machine).  The paused role, or None (no
+        controller running beside a running simulator)."""
+        procs = self.launcher.procs
+        if not all(r in procs and procs[r].poll() is None for r in ("sim", "tsc")):
+            return None
+        _killpg(procs["tsc"].pid, signal.SIGSTOP)
+        return "tsc"
+
     def stop(self, order) -> dict:
         # the recorder first gets what the nodes sent while they are still there (Fast DDS drops the
         # samples of a writer that is gone: a recorder stalled at the end lost the run's tail), then
         # the nodes stop (in the given order), the recorder last, once it has written what they sent
         order = [n for n in order if n in self.launcher.procs]
         self.check_live()
-        if sim_lingers(self):
+        paused = self._pause_controller()
+        if paused or sim_lingers(self):
             self.wait_recorder_drained()
         for n in order:
+            if n == paused:
+                _killpg(self.launcher.procs[n].pid, signal.SIGCONT)
             self.launcher.stop(n)
         self.wait_recorder_drained()
         report = self.launcher.stop_all(order=order + ["recorder"])
