@@ -15,6 +15,11 @@ from .common import EXIT_INFRA, EXIT_INTERRUPTED, log
 from .params import lockstep_sched, node_cmd, recorder_cmd
 
 
+#: wall seconds /tf's recorded count must stand still once the simulator's last step is recorded (the
+#: recorder reports its counts twice a second)
+DERIVED_QUIET_S = 0.6
+
+
 class Graph:
     """One isolated graph: recorder + nodes as OS processes, a watcher node in this process."""
 
@@ -157,9 +162,10 @@ class Graph:
 
     def wait_recorder_drained(self, quiet_s: float = 1.0, timeout: float = 30.0) -> None:
         """Until the recorder has written the last /clock step the simulator published (its status
-        carries the newest /clock stamp it recorded), or, when that cannot be known (no sim time
-        seen, a recorder without that field), until its message counts have stopped growing for
-        ``quiet_s``.  It is niced and queues behind the lockstep loop: on a loaded machine its
+        carries the newest /clock stamp it recorded), then (or, when that cannot be known: no sim
+        time seen, a recorder without that field, from the start) until its message counts have
+        stopped growing for ``quiet_s``: /tf, made from the simulator's states by state_publisher,
+        comes after them.  It is niced and queues behind the lockstep loop: on a loaded machine its
         counts can stand still for a second while the tail of the run is still queued (measured:
         the last 3 steps of a `flip stand` lost that way)."""
         if "recorder" not in self.launcher.procs or self.launcher.procs["recorder"].poll() is not None:
@@ -167,15 +173,20 @@ class Graph:
         final = self.sim_now()
         final_ns = None if final is None else int(round(final * 1e9))
         end = time.monotonic() + timeout
-        last, since = None, time.monotonic()
+        last, since, derived = None, time.monotonic(), False
         while time.monotonic() < end:
             self.spin(0.1)
             st = self.recorder_status
             if final_ns is not None and "last_clock_ns" in st:
                 if st["last_clock_ns"] is not None and st["last_clock_ns"] >= final_ns:
-                    return
+                    # then /tf until its count stands still (a paused lockstep re-sends its state)
+                    final_ns, derived, quiet_s = None, True, min(quiet_s, DERIVED_QUIET_S)
+                    last, since = None, time.monotonic()
                 continue
-            counts = json.dumps(st.get("counts", {}), sort_keys=True)
+            counts = st.get("counts", {})
+            if derived and "/tf" not in counts:
+                return
+            counts = json.dumps(counts.get("/tf") if derived else counts, sort_keys=True)
             if counts != last:
                 last, since = counts, time.monotonic()
             elif time.monotonic() - since >= quiet_s:
