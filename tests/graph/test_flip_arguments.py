@@ -29,7 +29,9 @@ def a_previous_run(path):
     (["run", "backflip", "--duration", "0"], "must be > 0"),
     (["run", "backflip", "--platform", "-0.5"], "must be >= 0"),
     (["run", "backflip", "--apex", "nan"], "not finite"),
-    (["run", "backflip", "--platform", "0.5", "--ground-offset", "0.1"], "--platform or --ground-offset"),
+    (["run", "backflip", "--plant", "friction=0"], "friction must be > 0"),
+    (["run", "backflip", "--plant", "mass=1.1"], "--plant: expected KNOB=VALUE"),
+    (["run", "backflip", "--plant", "delay_steps=1.5"], "whole number"),
     (["stand", "--duration", "0"], "must be > 0"),
     (["sim", "--duration", "-1"], "must be > 0"),
 ])
@@ -85,7 +87,7 @@ def test_usage_rejected_and_not_landed_exit_differently(tmp_path):
     """2: a refused argument (argparse's, or one flip checks itself); 4: a request the planner
     refuses (`flip plan`, no ROS); 1: a run whose bag shows no landing (`flip summarize`); 0: landed."""
     assert flip("plan", "backflip", "--apex", "oops", "--out", str(tmp_path / "p")).returncode == 2
-    assert flip("run", "backflip", "--platform", "0.5", "--ground-offset", "0.1").returncode == 2
+    assert flip("run", "backflip", "--plant", "torque_scale=-1").returncode == 2
     r = flip("plan", "backflip", "--apex", "6", "--out", str(tmp_path / "p"))
     assert r.returncode == 4 and "apex" in r.stderr, r.stderr
     from synthetic_bag import write_flip_bag

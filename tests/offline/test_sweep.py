@@ -136,8 +136,8 @@ def test_sweep_on_a_two_node_cluster(one_by_one):
         shutil.rmtree(temp, ignore_errors=True)
 
 
-def test_mode_graph_and_bad_arguments_are_refused(tmp_path):
-    for args, msg in ((["--mode", "graph", *GRID], "--mode graph is not implemented"),
+def test_graph_mode_noise_and_bad_arguments_are_refused(tmp_path):
+    for args, msg in ((["--mode", "graph", *GRID], "--mode graph cannot apply joint_noise"),
                       (["--grid", "frictoin=0.5"], "unknown knob 'frictoin'"),
                       (["--random", "4", "--range", "mass_scale=1.1:0.9"], "1.1 > 0.9"),
                       (["--grid", "delay_steps=0.5"], "whole number")):

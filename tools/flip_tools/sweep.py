@@ -1,5 +1,6 @@
 """`flip sweep`: how often the flips land over perturbations of the simulated robot (flip_tools.perturb),
-each sample an offline flip (flip_tools.offline) run as a Ray task.
+each sample an offline flip (flip_tools.offline) or, with ``--mode graph``, a `flip run` through the
+node graph (flip_tools.sweep_graph) run as a Ray task.
 
 Samples come from a grid (every combination of the knobs' levels, per flip) or are drawn at random
 from ranges with a seed.  Ray runs embedded on this machine by default, bound to 127.0.0.1 with a
@@ -121,7 +122,9 @@ def schema():
     knob_types = {k: (i64 if k == "delay_steps" else s if k == "push_phase" else f64) for k in P.KNOBS}
     return pa.schema([("sample_id", s), ("flip", s), ("knobs", s), ("seed", i64), *knob_types.items(),
                       ("outcome", s), ("limit", s), ("error", s), ("net_rotation_deg", f64), ("fell_at_s", f64),
-                      ("touchdown_s", f64), ("peak_flywheel_rpm", f64), ("sim_s", f64), ("wall_s", f64)])
+                      ("touchdown_s", f64), ("peak_flywheel_rpm", f64), ("sim_s", f64), ("wall_s", f64),
+                      # added with --mode graph (older part files read them as null)
+                      ("mode", s), ("jump_start_s", f64)])
 
 
 class ResultStore:
@@ -172,6 +175,12 @@ def _run_remote(record: dict) -> dict:
     return P.run_sample(P.Sample(**record))
 
 
+def _run_graph_remote(record: dict, runs_dir: str, keep_bag: bool) -> dict:
+    """A Ray task: one sample through the node graph (`flip run` in ``runs_dir``)."""
+    from .sweep_graph import run_graph_sample
+    return run_graph_sample(record, runs_dir, keep_bag)
+
+
 def start_ray(address: str | None, workers: int | None) -> int:
     """``ray.init`` embedded on this machine (bound to 127.0.0.1, no dashboard, a small object store)
     or joined to the cluster at ``address``; returns the number of CPUs it offers."""
@@ -202,43 +211,56 @@ def cluster_nodes() -> list[str]:
     return sorted(n["NodeManagerAddress"] for n in ray.nodes() if n["Alive"])
 
 
-def execute(samples: list, workers: int, on_result) -> None:
+def execute(samples: list, workers: int, on_result, graph: dict | None = None) -> None:
     """Run the samples as Ray tasks, at most ``workers`` at a time, handing each result to
-    ``on_result`` as it finishes (a task that died is an ``error`` result)."""
+    ``on_result`` as it finishes (a task that died is an ``error`` result).  ``graph``: each
+    through the node graph (``{"runs_dir": ..., "keep_bag": ...}``), a task taking GRAPH_CPUS."""
     import ray
-    task = ray.remote(num_cpus=1, max_retries=0)(_run_remote)
+    if graph is None:
+        task, extra = ray.remote(num_cpus=1, max_retries=0)(_run_remote), ()
+    else:
+        from .sweep_graph import GRAPH_CPUS
+        task = ray.remote(num_cpus=GRAPH_CPUS, max_retries=0)(_run_graph_remote)
+        extra = (graph["runs_dir"], graph["keep_bag"])
     queue = list(reversed(samples))
     running = {}
     while queue or running:
         while queue and len(running) < workers:
             s = queue.pop()
-            running[task.remote(s.to_dict())] = s
+            running[task.remote(s.to_dict(), *extra)] = s
         ready, _ = ray.wait(list(running), num_returns=1)
         for ref in ready:
             s = running.pop(ref)
             try:
                 row = ray.get(ref)
             except Exception as e:  # noqa: BLE001 -- a worker that died: the sample's result says so
-                row = P.failed_result(s, f"{type(e).__name__}: {e}")
+                row = P.failed_result(s, f"{type(e).__name__}: {e}", "offline" if graph is None else "graph")
             on_result(row)
 
 
 def run_sweep(samples: list, out: Path, address: str | None = None, workers: int | None = None,
-              progress: bool = True, log=print) -> list[dict]:
-    """Run the samples not yet in ``out``'s results on Ray; returns the results of all of them."""
+              progress: bool = True, log=print, graph: dict | None = None) -> list[dict]:
+    """Run the samples not yet in ``out``'s results on Ray (``graph``: through the node graph,
+    execute's); returns the results of all of them."""
     store = ResultStore(out)
     done = store.done_ids()
     todo = [s for s in samples if s.id not in done]
     log(f"sweep: {len(samples)} samples, {len(samples) - len(todo)} already in {store.dir}, {len(todo)} to run")
     if todo:
-        cpus = start_ray(address, workers)
+        per = 1
+        if graph is not None:
+            from .sweep_graph import GRAPH_CPUS
+            per = GRAPH_CPUS
+        # embedded: as many CPUs as the workers asked for take (a graph takes GRAPH_CPUS)
+        cpus = start_ray(address, workers and workers * per)
         import ray
         try:
             nodes = cluster_nodes()
-            n = min(workers or cpus, cpus) if address else (workers or cpus)
+            fits = max(1, cpus // per)
+            n = min(workers or fits, fits) if address else (workers or fits)
             log(f"ray {ray.__version__}: {len(nodes)} node(s) ({', '.join(sorted(set(nodes)))}), {cpus} CPU(s), "
-                f"{n} sample(s) at a time")
-            _execute_with_progress(todo, n, store, progress)
+                f"{n} sample(s) at a time" + (f", each a node graph of {per} CPUs" if graph is not None else ""))
+            _execute_with_progress(todo, n, store, progress, graph)
         finally:
             store.flush()
             ray.shutdown()
@@ -246,7 +268,7 @@ def run_sweep(samples: list, out: Path, address: str | None = None, workers: int
     return [r for r in store.rows() if r["sample_id"] in ids]
 
 
-def _execute_with_progress(todo, workers, store, progress) -> None:
+def _execute_with_progress(todo, workers, store, progress, graph=None) -> None:
     from tqdm import tqdm
     bar = tqdm(total=len(todo), file=sys.stderr, unit="sample", disable=not progress, smoothing=0.1)
     landed = 0
@@ -258,7 +280,7 @@ def _execute_with_progress(todo, workers, store, progress) -> None:
         bar.set_postfix(landed=landed, refresh=False)
         bar.update(1)
     try:
-        execute(todo, workers, on_result)
+        execute(todo, workers, on_result, graph)
     finally:
         bar.close()
 
@@ -275,9 +297,6 @@ def cmd_sweep(args, log=print) -> int:
     """`flip sweep`: the samples from the arguments, run (or resumed), reported; 0 when every sample
     has a result."""
     from . import sweep_report
-    if args.mode == "graph":
-        raise SystemExit("--mode graph is not implemented: a sweep runs its samples offline "
-                         "(flip_tools.offline, the nodes' code in one process); `flip run` runs one through the graph")
     if args.workers is not None and args.workers < 1:
         raise SystemExit("--workers must be >= 1")
     fixed = {n: _checked(n, v) for n, v in parse_assignments(args.set, "--set").items()}
@@ -300,11 +319,20 @@ def cmd_sweep(args, log=print) -> int:
             f"({', '.join(P.TRAVELLING)}), not to a flip in place")
     if not samples:
         raise SystemExit("no samples to run")
+    graph = None
     out = Path(args.out or f"runs/sweep-{time.strftime('%Y%m%d-%H%M%S')}")
+    if args.mode == "graph":
+        from .sweep_graph import refusal
+        why = refusal(samples)
+        if why:
+            raise SystemExit(why)
+        # each sample's `flip run` folder (summary.json, run.json, logs; the bag with --keep-bags)
+        graph = {"runs_dir": str((out / "runs").resolve()), "keep_bag": args.keep_bags}
     write_definition(out, {k: v for k, v in vars(args).items() if k != "func"}, samples)
     t0 = time.monotonic()
     try:
-        rows = run_sweep(samples, out, args.address, args.workers, progress=not args.no_progress, log=log)
+        rows = run_sweep(samples, out, args.address, args.workers, progress=not args.no_progress, log=log,
+                         graph=graph)
     except KeyboardInterrupt:
         log(f"sweep: interrupted; the finished samples are in {out / 'results'} (the same command resumes)")
         return 130

@@ -2,6 +2,7 @@
 before anything starts (a refused value is a SystemExit: exit 2)."""
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -88,20 +89,40 @@ def tsc_params(args) -> dict:
 
 
 def scenario_params(args) -> dict:
-    """sim_node's terrain: flat, a take-off platform (--platform M) or a raised landing area
-    (--ground-offset M), not both."""
+    """sim_node's terrain: flat, a take-off platform (--platform M), a raised (or lowered) landing
+    area (--ground-offset M), or both (the landing area's height: sim_node's ``landing_height``)."""
     p = {}
     platform = getattr(args, "platform", None) or 0.0
     offset = getattr(args, "ground_offset", None) or 0.0
-    if platform and offset:
-        raise SystemExit("choose --platform or --ground-offset, not both")
     if platform:
         p.update(scenario="platform", platform_height=float(platform))
+        if offset:
+            p["landing_height"] = float(offset)
     elif offset:
         p.update(scenario="raised", ground_offset=float(offset))
     else:
         p.update(scenario="flat")
     return p
+
+
+def plant_params(args) -> dict:
+    """sim_node's ``plant`` (--plant KNOB=V ...: the robot perturbed as the planner and controller
+    are not told; cassie_flip_sim.perturbation), checked here (exit 2), or nothing."""
+    items = getattr(args, "plant", None)
+    if not items:
+        return {}
+    from cassie_flip_sim.perturbation import PLANT_KNOBS, check_knob
+    knobs = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or name not in PLANT_KNOBS or name in knobs:
+            raise SystemExit(f"--plant: expected KNOB=VALUE with one of {', '.join(PLANT_KNOBS)} once each, "
+                             f"got {item!r}")
+        try:
+            knobs[name] = check_knob(name, value)
+        except ValueError as e:
+            raise SystemExit(f"--plant: {e}") from None
+    return {"plant": json.dumps(knobs, sort_keys=True)}
 
 
 def landing_ground_z(args) -> float:

@@ -13,8 +13,8 @@ from .common import (EXIT_INFRA, EXIT_INTERRUPTED, EXIT_NOT_LANDED, EXIT_OK, EXI
                      POSITIVE, log, prepare_out)
 from .graph import Graph, run_graph
 from .options import controller_opt, graph_opts, scenario_opts
-from .params import (SIM_MIN_SUBSCRIBERS, check_live_port, landing_ground_z, robot_params, scenario_params,
-                     sim_loop_params, takeoff_ground_z, tsc_params, wrench_params)
+from .params import (SIM_MIN_SUBSCRIBERS, check_live_port, landing_ground_z, plant_params, robot_params,
+                     scenario_params, sim_loop_params, takeoff_ground_z, tsc_params, wrench_params)
 from .progress import JUMP_ALLOWANCE_S, landing_end, wait_for_sim_end, wait_sim_time
 from .results import finish, print_summary
 from .services import call_request_flip, response_dict
@@ -29,6 +29,11 @@ def add_parser(sub) -> None:
     sp.add_argument("kind", choices=["backflip", "frontflip", "hop"])
     scenario_opts(sp)
     sp.add_argument("--out", help="output dir (default runs/<kind>-<time>)")
+    sp.add_argument("--plant", nargs="+", metavar="KNOB=V",
+                    help="the simulated robot perturbed, unknown to the planner and controller (as `flip sweep` "
+                         "does): friction, mass_scale, com_offset, torque_scale, delay_steps, push, push_phase "
+                         "(`flip sweep --help` says what each does)")
+    sp.add_argument("--no-plots", action="store_true", help="summary.json only, no plots (as `flip sweep` runs it)")
     sp.add_argument("--video", action="store_true",
                     help="render DIR/flip.mp4 (DIR/flip.gif without ffmpeg) from the bag after the run")
     sp.add_argument("--duration", type=POSITIVE, help="sim duration, s (default: until --settle s after the touch-down)")
@@ -61,7 +66,7 @@ def run_setup(args) -> dict:
     # recorder has all they sent
     sim_params = {"mode": "lockstep", "controller": "tsc", "min_subscribers": SIM_MIN_SUBSCRIBERS, "linger": True,
                   "duration": float(args.duration if args.duration else args.max_sim_time),
-                  **robot_params(args), **scen, **sim_loop_params(args), **wrench_params(args)}
+                  **robot_params(args), **scen, **plant_params(args), **sim_loop_params(args), **wrench_params(args)}
     planner_params = {**robot_params(args), "platform_height": float(args.platform or 0.0)}
     return {"command": sys.argv, "kind": kind, "robot": args.robot, "sim_params": sim_params,
             "planner_params": planner_params,
@@ -145,7 +150,7 @@ def cmd_run(args) -> int:
                                   lambda graph: fly(graph, args, run_info, extra))
     (out / "run.json").write_text(json.dumps(run_info, indent=2))
     summary = finish(out, graph, report, extra, args.kind, run_info["landing_ground_z"],
-                     run_info["takeoff_ground_z"])
+                     run_info["takeoff_ground_z"], plots=not args.no_plots)
     if args.video and (out / "bag" / "metadata.yaml").exists():
         try:
             video = render_video(out, args)
@@ -173,9 +178,12 @@ def run_exit(rc: int, extra: dict, report: dict, summary: dict) -> int:
 
 def render_video(out: Path, args) -> Path:
     """DIR/flip.mp4 (or .gif without ffmpeg) rendered from the run's bag, terrain as simulated."""
+    from cassie_flip_sim.perturbation import with_landing_offset
     from cassie_model.model import Scenario
     from flip_tools.video import render_run
     sp = scenario_params(args)
-    scen = {"flat": Scenario.flat, "platform": lambda: Scenario.platform(sp.get("platform_height", 0.5)),
+    scen = {"flat": Scenario.flat,
+            "platform": lambda: with_landing_offset(Scenario.platform(sp.get("platform_height", 0.5)),
+                                                    sp.get("landing_height", 0.0)),
             "raised": lambda: Scenario.raised_landing(sp.get("ground_offset", 0.1))}[sp["scenario"]]()
     return render_run(out, getattr(args, "flywheel", None) or "I", scen)

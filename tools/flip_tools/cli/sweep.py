@@ -1,5 +1,5 @@
 """flip sweep: the landing rate of the paper's flips over perturbations of the simulated robot,
-offline flips as Ray tasks (the sweep itself: flip_tools.sweep)."""
+offline flips or `flip run`s through the node graph as Ray tasks (the sweep itself: flip_tools.sweep)."""
 from __future__ import annotations
 
 import argparse
@@ -7,7 +7,7 @@ import argparse
 
 def add_parser(sub) -> None:
     sp = sub.add_parser("sweep", help="landing rate of the paper's flips over perturbations of the simulated "
-                                      "robot (offline flips as Ray tasks; flip_tools.sweep)")
+                                      "robot (offline flips or node-graph runs as Ray tasks; flip_tools.sweep)")
     sweep_opts(sp)
     sp.set_defaults(func=cmd_sweep)
 
@@ -39,6 +39,9 @@ def sweep_opts(sp) -> None:
     sp.add_argument("--address", metavar="HOST:PORT",
                     help="join this Ray cluster (default: Ray embedded on this machine, bound to 127.0.0.1)")
     sp.add_argument("--mode", choices=["offline", "graph"], default="offline",
-                    help="offline (default): simulator, planner and controller in one process; graph: not implemented")
+                    help="offline (default): simulator, planner and controller in one process; graph: each "
+                         "sample a `flip run` through the node graph (its own ROS domain, 2 CPUs a graph; "
+                         "the noise knobs are refused)")
+    sp.add_argument("--keep-bags", action="store_true", help="graph: keep each run's bag (DIR/runs/<id>/bag)")
     sp.add_argument("--out", help="output dir (default runs/sweep-<time>); a rerun with it resumes")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -60,6 +60,7 @@ from std_srvs.srv import Trigger
 
 from .contacts import Event
 from .foot_wrench import FOOT_LINKS, WRENCH_TOPICS
+from .perturbation import PlantPerturbation, parse_plant, with_landing_offset
 from .simulator import Simulator
 
 #: longest wall time the simulator holds at a contact event for the planner's reference
@@ -83,13 +84,14 @@ SPIN_EVERY = 200
 WRENCH_RATE_HZ = 200.0
 
 
-def make_scenario(name, platform_height, ground_offset):
-    """Terrain from the node's parameters: flat, a start platform (flip C) or a landing area
-    higher than the planner is told (flip D)."""
+def make_scenario(name, platform_height, ground_offset, landing_height=0.0):
+    """Terrain from the node's parameters: flat, a start platform (flip C; ``landing_height``: the
+    ground from 0.4 m ahead that much higher, unknown to the planner) or a landing area higher than
+    the planner is told (flip D)."""
     if name == 'flat':
         return Scenario.flat()
     if name == 'platform':
-        return Scenario.platform(platform_height)
+        return with_landing_offset(Scenario.platform(platform_height), landing_height)
     if name in ('raised', 'raised_landing'):
         return Scenario.raised_landing(ground_offset)
     raise ValueError(f"scenario must be 'flat', 'platform' or 'raised', not {name!r}")
@@ -121,7 +123,8 @@ class SimNode:
         mass = float(_declare(n, 'flywheel_mass', 0.0))
         scenario = make_scenario(_declare(n, 'scenario', 'flat'),
                                  float(_declare(n, 'platform_height', 0.5)),
-                                 float(_declare(n, 'ground_offset', 0.1)))
+                                 float(_declare(n, 'ground_offset', 0.1)),
+                                 float(_declare(n, 'landing_height', 0.0)))
         # subscribers (besides a lockstep controller) to wait for before the first step, e.g. a
         # recorder: best-effort messages sent before a reader has matched are lost
         self.min_subscribers = int(_declare(n, 'min_subscribers', 0))
@@ -146,6 +149,13 @@ class SimNode:
         self.sim = Simulator(flywheel=fw, scenario=scenario, motor_speed_scale=speed_scale,
                              flywheel_torque=flywheel_torque)
         self.scenario = scenario
+        # the robot perturbed as the planner and controller are not told (robustness sweeps): the
+        # knobs of cassie_flip_sim.perturbation as JSON; a delay or a push needs the Python loop
+        plant = parse_plant(_declare(n, 'plant', ''))
+        self.plant = PlantPerturbation(self.sim, plant) if plant else None
+        if self.plant is not None:
+            n.get_logger().info(self.plant.describe(self.sim))
+            self.compiled_loop = self.compiled_loop and not self.plant.per_step
         self.dt = self.sim.timestep
         self.dt_ns = int(round(self.dt * 1e9))
         # /clock every clock_every steps (clock_rate <= 0 or >= the step rate: every step)
@@ -283,6 +293,8 @@ class SimNode:
     # -- references and services -------------------------------------------------------------
     def _note_reference(self, msg):
         self.plan_in_force = (msg.plan_id, msg.domain, stamp_to_ns(msg.start_time))
+        if self.plant is not None and msg.domain == FlipReference.DOMAIN_JUMPING:
+            self.plant.jump_started(stamp_to_ns(msg.start_time) * 1e-9)
 
     def _commands(self, taken):
         """``(step, torques)`` of the serialized commands taken; references are noted."""
@@ -438,6 +450,8 @@ class SimNode:
                     log.info('reset to standing')
                 for event in self.sim.pop_events():
                     self._publish_event(k, event)
+                    if self.plant is not None:
+                        self.plant.on_event(event)
                     if self.mode == 'lockstep':
                         self._hold_for_reference(k, domain_entered(event))
                 touching = self.sim.body_contacts()
@@ -494,7 +508,8 @@ class SimNode:
                             damping = False
                 c2 = clock()
                 wrench = self.wrench_every > 0 and k % self.wrench_every == 0
-                self.sim.step(self.command, wrench=wrench)
+                u = self.command if self.plant is None else self.plant.command(self.sim, self.command)
+                self.sim.step(u, wrench=wrench)
                 c3 = clock()
                 spent['simulate'] += c3 - c2
                 if wrench:
