@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""Flips in a row without ROS: from each start time, one simulator and one controller do N flips of a
+kind, each asked 0.5 s after the previous run ends (``--seconds`` of sim time per flip), the pitch turns
+carried as planner_node carries them (flip_tools.offline.run(turns=...)).  Prints each chain's outcomes
+and, per flip number, how many landed (a chain stops at its first flip that does not land).
+
+  .venv/bin/python scripts/bench_flips_in_a_row.py --kinds backflip frontflip --flips 3
+"""
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+
+#: start times of the first flip (s): the robot has stood that long
+START_TIMES = (1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0)
+#: sim time between the end of one flip's run and the next one's jump (s)
+GAP_S = 0.5
+
+
+def chain(kind: str, start: float, flips: int, seconds: float, scale: float, torque: float, apex: float) -> list[str]:
+    """The outcomes (flip_tools.offline.outcome) of up to ``flips`` flips in a row from ``start``."""
+    from cassie_flip_sim.simulator import Simulator
+    from cassie_model.model import export_mjcf
+    from flip_tools import offline as of
+    from fslip_planner.feasibility import InfeasibleRequest
+    from tsc_controller import Controller
+    sim = Simulator(motor_speed_scale=scale, flywheel_torque=torque)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque)
+    turns, t, out = None, start, []
+    for i in range(flips):
+        try:
+            r = of.run(kind, seconds=t + seconds, start=t, sim=sim, controller=ctl, every=20, turns=turns,
+                       apex_height=apex, motor_speed_scale=scale, flywheel_torque=torque)
+        except InfeasibleRequest as e:
+            out.append(f"rejected ({e.limit})")
+            break
+        turns = r["turns"]
+        # the pitch counts the turns of the flips before: judge this flip's own
+        out.append(of.outcome(r, kind, pitch_end=float(r["pitch"][-1]) - of.EXPECTED_TURN[kind] * i))
+        if out[-1] != "landed":
+            break
+        t = sim.time + GAP_S
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kinds", nargs="+", default=["backflip", "frontflip"], choices=["backflip", "frontflip"])
+    ap.add_argument("--flips", type=int, default=3, help="flips in a row from each start time")
+    ap.add_argument("--starts", nargs="+", type=float, default=list(START_TIMES))
+    ap.add_argument("--seconds", type=float, default=8.0, help="sim time of each flip's run (s)")
+    ap.add_argument("--motor-speed-scale", type=float, default=3.0)
+    ap.add_argument("--flywheel-torque", type=float, default=260.0)
+    ap.add_argument("--apex", type=float, default=1.3)
+    ap.add_argument("--jobs", type=int, default=2)
+    a = ap.parse_args()
+    jobs = [(k, s) for k in a.kinds for s in a.starts]
+    with ProcessPoolExecutor(a.jobs) as ex:
+        futs = [ex.submit(chain, k, s, a.flips, a.seconds, a.motor_speed_scale, a.flywheel_torque, a.apex)
+                for k, s in jobs]
+        results = [f.result() for f in futs]
+    print("| kind | first start (s) | " + " | ".join(f"flip {i + 1}" for i in range(a.flips)) + " |")
+    print("|---|---|" + "---|" * a.flips)
+    for (kind, start), res in zip(jobs, results):
+        cells = res + ["-"] * (a.flips - len(res))
+        print(f"| {kind} | {start:.2f} | " + " | ".join(cells) + " |")
+    for kind in a.kinds:
+        rows = [res for (k, _), res in zip(jobs, results) if k == kind]
+        tally = [f"flip {i + 1}: {sum(1 for r in rows if len(r) > i and r[i] == 'landed')} of "
+                 f"{sum(1 for r in rows if len(r) > i)}" for i in range(a.flips)]
+        print(f"{kind}: " + ", ".join(tally))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
