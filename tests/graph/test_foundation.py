@@ -121,7 +121,7 @@ def publish_odom(tn, x=0.0, z=None, pitch=0.0) -> dict:
 def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
     """The real planner_node reads the newest /odom at each request: none -> refused (no_state), a
     fallen pelvis -> refused (not_standing), standing still with the flywheel spinning -> refused
-    (not_standing), standing 0.16 m ahead of the start -> a JUMPING reference whose COM targets
+    (not_standing), a simulated robot with another flywheel -> refused (robot_mismatch), standing 0.16 m ahead of the start -> a JUMPING reference whose COM targets
     start there (issue 26, items 1 and 5)."""
     from fslip_planner.plan import _Robot
     planner = str(Path(sys.executable).parent / "planner_node")
@@ -152,6 +152,17 @@ def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
     assert "flywheel spinning at 2865 rpm" in spinning.reason, spinning.reason
 
     wheel["speed"] = 0.0
+    # a simulator with another flywheel than the planner's (its /robot_description_mjcf): refused, named
+    from cassie_model.model import export_mjcf
+    from flip_transport.lockstep import LATCHED_QOS
+    from std_msgs.msg import String
+    desc = tn.node.create_publisher(String, "/robot_description_mjcf", LATCHED_QOS)
+    desc.publish(String(data=export_mjcf("III")))
+    other = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=60)
+    assert not other.accepted and other.reason.startswith("robot_mismatch:"), other.reason
+    assert "28.63 kg" in other.reason and "flywheel I " in other.reason, other.reason
+    desc.publish(String(data=export_mjcf("I")))
+    tn.spin_for(1.0)                                  # the planner takes the new description
     ok = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=120)
     assert ok.accepted, ok.reason
     tn.spin_until(lambda: refs, what="the JUMPING reference")

@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 import rclpy
+from cassie_model.description import flywheel_inertial
+from cassie_model.model import export_mjcf
 from cassie_model.robot_params import FOOT_RADIUS
 from flip_msgs.msg import ContactEvent, FlipReference
 from flip_msgs.srv import RequestFlip
@@ -29,6 +31,7 @@ from nav_msgs.msg import Odometry, Path
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .feasibility import rotation_xyzw
@@ -140,6 +143,9 @@ class PlannerNode:
         self._targets = {}              # the foot-target markers of the flip under way, by (ns, id)
         n.create_service(RequestFlip, '/request_flip', self._on_request)
         n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
+        # the simulated robot's description: a flywheel other than the one planned for is refused
+        self.sim_mjcf = None
+        n.create_subscription(String, '/robot_description_mjcf', self._on_description, LATCHED_QOS)
         # The newest /clock is read on demand from a node no executor spins (no 2 kHz callbacks).
         self._clock_node = rclpy.create_node('planner_clock')
         self._clock = SubscriptionSet(self._clock_node, [(Clock, '/clock', STREAM_QOS)])
@@ -219,11 +225,35 @@ class PlannerNode:
         clear.header.frame_id = 'world'
         self.pub_targets.publish(MarkerArray(markers=[clear] + list(self._targets.values())))
 
+    def _on_description(self, msg):
+        self.sim_mjcf = msg.data
+
+    def robot_mismatch(self) -> str | None:
+        """Why the simulated robot (its /robot_description_mjcf) cannot be planned for, or None: its
+        flywheel is not the planner's (the FSLIP's K, D, I regressions are for the named flywheels)."""
+        if self.sim_mjcf is None:
+            return None
+        try:
+            sim = flywheel_inertial(self.sim_mjcf)
+        except ValueError as e:
+            return f'robot_mismatch: /robot_description_mjcf unreadable: {e}'
+        own = flywheel_inertial(export_mjcf(self.flywheel))
+        if sim is not None and own is not None and np.allclose(sim[0], own[0]) and np.allclose(sim[1], own[1]):
+            return None
+        fmt = (lambda f: 'none' if f is None else f'{f[0]:g} kg, pitch inertia {f[1][1]:g} kg m^2')
+        return (f'robot_mismatch: the simulated flywheel ({fmt(sim)}) is not flywheel {self.flywheel} ({fmt(own)}), '
+                'the one this planner models: give planner_node the flywheel the simulator has (I, II or III)')
+
     def _on_request(self, req, res):
         res.accepted = False
         kind = KINDS.get(req.kind)
         if kind is None:
             res.reason = f'unknown kind {req.kind}: expected 0 (backflip), 1 (frontflip) or 2 (hop)'
+            return res
+        mismatch = self.robot_mismatch()
+        if mismatch is not None:
+            res.reason = mismatch
+            self.node.get_logger().warn(f'request refused: {mismatch}')
             return res
         if self.session is not None and not self.session.finished(self._sim_now()):
             res.reason = f'a flip (plan {self.plan_id}) is under way: wait until it has landed'
