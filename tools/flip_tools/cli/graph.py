@@ -20,6 +20,13 @@ from .params import lockstep_sched, node_cmd, recorder_cmd
 DERIVED_QUIET_S = 0.6
 
 
+#: wall seconds sim time must stand still after the controller is paused for the lockstep to count
+#: as stopped (the simulator re-sends its state every 50 ms meanwhile, with the same stamp)
+PAUSE_CHECK_S = 0.3
+#: sim seconds a paused lockstep can still advance: the step under way and its /clock (5 ms grid)
+PAUSE_MAX_ADVANCE_S = 0.02
+
+
 class Graph:
     """One isolated graph: recorder + nodes as OS processes, a watcher node in this process."""
 
@@ -204,7 +211,21 @@ class Graph:
         if not all(r in procs and procs[r].poll() is None for r in ("sim", "tsc")):
             return None
         _killpg(procs["tsc"].pid, signal.SIGSTOP)
-        return "tsc"
+        # a simulator that does not wait for the controller (realtime mode, a stand-in) goes on:
+        # the controller is let go again and the run stops as it did before
+        t0 = self.sim_now()
+        t_last, since, end = t0, time.monotonic(), time.monotonic() + 2.0
+        while time.monotonic() < end:
+            self.spin(0.02)
+            now = self.sim_now()
+            if t0 is None or now is None or now - t0 > PAUSE_MAX_ADVANCE_S:
+                break
+            if now != t_last:
+                t_last, since = now, time.monotonic()
+            elif time.monotonic() - since >= PAUSE_CHECK_S:
+                return "tsc"
+        _killpg(procs["tsc"].pid, signal.SIGCONT)
+        return None
 
     def stop(self, order) -> dict:
         # the recorder first gets what the nodes sent while they are still there (Fast DDS drops the
@@ -213,6 +234,8 @@ class Graph:
         order = [n for n in order if n in self.launcher.procs]
         self.check_live()
         paused = self._pause_controller()
+        if paused:
+            log(f"lockstep paused at sim t = {self.sim_time:.3f} s (controller stopped): the recorder writes the tail")
         if paused or sim_lingers(self):
             self.wait_recorder_drained()
         for n in order:
