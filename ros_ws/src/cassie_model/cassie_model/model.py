@@ -49,6 +49,47 @@ def _f(*vals) -> str:
     return " ".join(repr(float(v)) for v in vals)
 
 
+def _visual_geoms(lines: list, b: P.Body, children: dict, indent: str):
+    """The massless visual geoms of body ``b`` and, on a foot, its contact spheres and toe/heel sites."""
+    # visual primitives (massless): pelvis box, capsules towards the children
+    if b.parent == "world":
+        lines.append(f'{indent}  <geom name="pelvis_vis" type="box" size="0.08 0.12 0.06" pos="0.03 0 0.03"/>')
+    for c in children.get(b.name, []):
+        if np.linalg.norm(c.pos) > 1e-3 and b.parent != "world":
+            lines.append(f'{indent}  <geom type="capsule" size="0.015" fromto="0 0 0 {_f(*c.pos)}"/>')
+    if b.name.endswith("_achilles_rod") or b.name.endswith("_plantar_rod"):
+        length = 0.5012 if b.name.endswith("_achilles_rod") else 0.35012
+        lines.append(f'{indent}  <geom type="capsule" size="0.008" fromto="0 0 0 {length!r} 0 0"/>')
+    if b.name.endswith("_tarsus") or b.name.endswith("_heel_spring") or b.name.endswith("_shin"):
+        tip = {"_tarsus": (0.43, -0.04, 0), "_heel_spring": (0.1, 0, 0), "_shin": (0.43476, 0, 0)}
+        for k, v in tip.items():
+            if b.name.endswith(k):
+                lines.append(f'{indent}  <geom type="capsule" size="0.02" fromto="0 0 0 {_f(*v)}"/>')
+    if b.name.endswith("_foot") and b.parent.endswith("_tarsus"):
+        side = b.name.split("_")[0]
+        h, t, r = P.FOOT_HEEL, P.FOOT_TOE, P.FOOT_RADIUS
+        lines.append(f'{indent}  <geom type="capsule" size="0.012" fromto="{_f(*h, *t)}"/>')
+        for gname, pt in zip(FOOT_GEOMS[side], (h, t)):
+            lines.append(f'{indent}  <geom name="{gname}" type="sphere" size="{r!r}" pos="{_f(*pt)}" '
+                         f'contype="1" conaffinity="0" condim="3" friction="{_f(*P.FRICTION)}" group="3" '
+                         f'rgba="0.2 0.2 0.2 1"/>')
+        lines.append(f'{indent}  <site name="{side}_foot_heel" pos="{_f(*h)}"/>')
+        lines.append(f'{indent}  <site name="{side}_foot_toe" pos="{_f(*t)}"/>')
+
+
+def _flywheel_xml(lines: list, fw, indent: str):
+    """The flywheel body (inertia, hinge about y, visual disc) inside the pelvis."""
+    ind = indent + "  "
+    lines.append(f'{ind}<body name="flywheel" pos="0 0 {fw.height!r}">')
+    lines.append(f'{ind}  <inertial pos="0 0 0" mass="{fw.mass!r}" '
+                 f'diaginertia="{_f(fw.inertia_transverse, fw.inertia_pitch, fw.inertia_transverse)}"/>')
+    lines.append(f'{ind}  <joint name="flywheel" type="hinge" axis="0 1 0"/>')
+    lines.append(f'{ind}  <geom type="cylinder" size="{_f(fw.radius, fw.thickness / 2)}" '
+                 f'quat="0.7071067811865476 0.7071067811865476 0 0" rgba="0.6 0.6 0.65 1"/>')
+    lines.append(f'{ind}  <geom type="box" size="0.01 {fw.thickness / 2 + 0.002!r} {0.9 * fw.radius!r}" rgba="0.1 0.1 0.1 1"/>')
+    lines.append(f"{ind}</body>")
+
+
 def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywheel") -> str:
     """Robot MJCF (no terrain) that both MuJoCo and Pinocchio load.
 
@@ -94,42 +135,11 @@ def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywh
             if j.armature:
                 a += f' armature="{j.armature!r}"'
             lines.append(f"{indent}  <joint {a}/>")
-        # visual primitives (massless): pelvis box, capsules towards the children
-        if b.parent == "world":
-            lines.append(f'{indent}  <geom name="pelvis_vis" type="box" size="0.08 0.12 0.06" pos="0.03 0 0.03"/>')
-        for c in children.get(b.name, []):
-            if np.linalg.norm(c.pos) > 1e-3 and b.parent != "world":
-                lines.append(f'{indent}  <geom type="capsule" size="0.015" fromto="0 0 0 {_f(*c.pos)}"/>')
-        if b.name.endswith("_achilles_rod") or b.name.endswith("_plantar_rod"):
-            length = 0.5012 if b.name.endswith("_achilles_rod") else 0.35012
-            lines.append(f'{indent}  <geom type="capsule" size="0.008" fromto="0 0 0 {length!r} 0 0"/>')
-        if b.name.endswith("_tarsus") or b.name.endswith("_heel_spring") or b.name.endswith("_shin"):
-            tip = {"_tarsus": (0.43, -0.04, 0), "_heel_spring": (0.1, 0, 0), "_shin": (0.43476, 0, 0)}
-            for k, v in tip.items():
-                if b.name.endswith(k):
-                    lines.append(f'{indent}  <geom type="capsule" size="0.02" fromto="0 0 0 {_f(*v)}"/>')
-        if b.name.endswith("_foot") and b.parent.endswith("_tarsus"):
-            side = b.name.split("_")[0]
-            h, t, r = P.FOOT_HEEL, P.FOOT_TOE, P.FOOT_RADIUS
-            lines.append(f'{indent}  <geom type="capsule" size="0.012" fromto="{_f(*h, *t)}"/>')
-            for gname, pt in zip(FOOT_GEOMS[side], (h, t)):
-                lines.append(f'{indent}  <geom name="{gname}" type="sphere" size="{r!r}" pos="{_f(*pt)}" '
-                             f'contype="1" conaffinity="0" condim="3" friction="{_f(*P.FRICTION)}" group="3" '
-                             f'rgba="0.2 0.2 0.2 1"/>')
-            lines.append(f'{indent}  <site name="{side}_foot_heel" pos="{_f(*h)}"/>')
-            lines.append(f'{indent}  <site name="{side}_foot_toe" pos="{_f(*t)}"/>')
+        _visual_geoms(lines, b, children, indent)
         for c in children.get(b.name, []):
             body_xml(c, indent + "  ")
         if b.parent == "world" and fw is not None:
-            ind = indent + "  "
-            lines.append(f'{ind}<body name="flywheel" pos="0 0 {fw.height!r}">')
-            lines.append(f'{ind}  <inertial pos="0 0 0" mass="{fw.mass!r}" '
-                         f'diaginertia="{_f(fw.inertia_transverse, fw.inertia_pitch, fw.inertia_transverse)}"/>')
-            lines.append(f'{ind}  <joint name="flywheel" type="hinge" axis="0 1 0"/>')
-            lines.append(f'{ind}  <geom type="cylinder" size="{_f(fw.radius, fw.thickness / 2)}" '
-                         f'quat="0.7071067811865476 0.7071067811865476 0 0" rgba="0.6 0.6 0.65 1"/>')
-            lines.append(f'{ind}  <geom type="box" size="0.01 {fw.thickness / 2 + 0.002!r} {0.9 * fw.radius!r}" rgba="0.1 0.1 0.1 1"/>')
-            lines.append(f"{ind}</body>")
+            _flywheel_xml(lines, fw, indent)
         lines.append(f"{indent}</body>")
 
     body_xml(P.PELVIS, "    ")
