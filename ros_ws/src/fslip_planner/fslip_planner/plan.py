@@ -46,9 +46,7 @@ MAX_TOUCHDOWN_LEAN = math.radians(45.0)
 #: share of the flywheel torque limit the flight's pitch profile may use (the rest is the feedback's)
 FLYWHEEL_TORQUE_SHARE = 0.7
 #: touch-down leg length = standing length + this (m), not the lift-off length: a leg nearly straight
-#: at touch-down (0.98 m) cannot brake the fall — measured after a backflip (motor speed scale 3,
-#: apex 1.3 m, touch-down at 2.7 m/s): knee torques ~0, the feet unloaded 70 ms after touch-down and
-#: the legs folded at the fall speed; at 0.90 m the fall was caught (2.45 -> 0.6 m/s in 0.1 s)
+#: at touch-down cannot brake the fall (docs/measurements.md, Planner and robot-model values)
 LANDING_LEG_EXTENSION = 0.04
 
 

@@ -158,8 +158,8 @@ class GroundTargets:
         com[0][0] += k * float(H[1][0])
         com[1][0] += k * float(H[2][0])
         if self.foot_anchor is not None:
-            # the feet creep on the ground during a hard landing (measured: 10-20 cm over 1.5 s after a
-            # backflip, until the COM was behind the heels): the COM follows where they stand now
+            # the feet creep on the ground during a hard landing: the COM follows where they stand now
+            # (docs/tuning.md, Ground targets)
             a = self.foot_anchor
             mid = 0.25 * (a[0][:2] + a[0][3:5] + a[1][:2] + a[1][3:5])
             com[0][:2] += mid - s["c1"][:2]
@@ -188,8 +188,8 @@ class GroundTargets:
         """Leg length of the landing (:func:`leg_catch` from the leg and sink rate at touch-down),
         re-anchored on the measured state whenever the body sinks slower than the profile shortens
         the leg by more than ``catch_slack``: the touch-down impact takes a good part of the sink
-        rate at once (measured after a backflip: 2.4 -> 1.3 m/s in 60 ms), and a leg still shortened
-        at the profile's rate pulled the feet off the ground (F = 0 at 90 ms, a bounce)."""
+        rate at once, and a leg still shortened at the profile's rate pulls the feet off the ground
+        (docs/tuning.md, Ground targets)."""
         s, cfg = self.stand, self.cfg
         tL = s.get("tL", s["t0"])
         des = leg_catch(float(s["L0"][0]), float(s["Ld0"][0]), float(s["L1"][0]), t - tL, cfg.catch_decel, cfg.L_min)
@@ -203,11 +203,8 @@ class GroundTargets:
     def _momentum_removal(self, dt):
         """Desired (H, dH/dt, d2H/dt2) of the pitch momentum a landing brings (the flywheel's, after a
         flip): taken out at a moment the feet can give, dH/dt = -clip(kp H, +-M), M = ``landing_moment``
-        ramped in over ``moment_ramp``, from the measured H (value = H: no error to correct).
-        A time profile (quintic from the touch-down value) was tried first: the impact took 8 of a
-        backflip's 35 kg*m^2/s and the QP spent the landing's ground forces on a 100 N*m moment to
-        put them back while the legs gave way; a landing that fell behind the profile got kp times its
-        lag asked (180 N*m), the COM was driven off the feet and the robot fell 1.8 s after landing."""
+        ramped in over ``moment_ramp``, from the measured H (value = H: no error to correct), not a
+        time profile, which the impact puts the landing behind (docs/tuning.md, Ground targets)."""
         kp = self.o_H.kp
         H_now = float(self.o_H.evaluate(self.dyn)[0][0])
         self.stand["H_now"] = H_now
@@ -260,8 +257,7 @@ class GroundTargets:
         spring carries less than ``foot_loaded_spring``, is off it; back on it below ``foot_land``.  A foot on the ground keeps its anchor (toe, heel positions, at ground height);
         an airborne foot keeps the last one as its swing target.  The QP's flat-foot contact for a foot
         that has unloaded and lifted is a model of something that is not there: torques computed
-        for it throw the foot about (measured: a 75 N lateral push for 0.1 s made the unloaded foot
-        slide 9 cm and the robot fall)."""
+        for it throw the foot about (docs/tuning.md, Ground targets)."""
         if self.compiled is not None:
             self.compiled.update_feet(self.dyn.native)
             return
@@ -281,8 +277,7 @@ class GroundTargets:
                                                       self._shin_q0_list)]
         for k, p in enumerate(P):
             # a foot rocked onto its toe or heel keeps its contact rows: declared off, its swing output
-            # could not bring it down (it rests on one end) and the robot stood on the other leg (measured
-            # backflip landings: 1 fall in 6 start times with, 0 in 6 without)
+            # could not bring it down (it rests on one end) and the robot stood on the other leg
             h = z_low[k] - self.z_ground
             if self.feet_contact[k]:
                 if cfg.per_foot_contact and h > cfg.foot_lift and tau_shin[k] < cfg.foot_loaded_spring:
