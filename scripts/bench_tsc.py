@@ -121,6 +121,69 @@ def controller(a):
     return Controller(export_mjcf(), solver=a.solver, backend=a.backend, compiled_targets=not a.python_targets)
 
 
+def _replay(a, states, n_w):
+    """The recorded states through fresh controllers, ``a.replays`` times; the best replay's stages."""
+    # ---- the same states replayed through a fresh controller, back to back (a controller process
+    # of its own, as tsc_node: no simulator step between ticks to evict the caches)
+    best = None
+    for r in range(a.replays):
+        ctl2 = controller(a)
+        rep, rep_tick, rep_parts = [], [], {}
+        for k, (q, v, t) in enumerate(states):
+            t0 = time.perf_counter()
+            _, info = ctl2.compute(q, v, t)
+            if k >= n_w:
+                rep.append(time.perf_counter() - t0)
+                rep_tick.append(info["tick_time"])
+                for kk, vv in info["timing"].items():
+                    rep_parts.setdefault(kk, []).append(vv)
+        row(f"TOTAL compute(), replay {r + 1}", rep)
+        if best is None or np.median(rep) < np.median(best[0]):
+            best = rep, rep_tick, rep_parts
+    row("TOTAL compute(), best replay", best[0])
+    print("\nStages of the best replay")
+    stages(best[2], best[1], a.backend)
+
+
+def _solver_comparison(qps):
+    """The QP solvers on the QPs the closed loop recorded: time and distance from DAQP's solution."""
+    # ---- solver comparison on the recorded QPs (11 variables, 16 GRF rows + box)
+    print(f"\nQP solvers on the {len(qps)} recorded QPs (11 variables, {qps[0][2].shape[0]} inequality rows + bounds)")
+    print(f"| {'solver':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} | max |u - u_daqp|")
+    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|{'-' * 17}")
+    ref = [T._DAQP(11, p[2].shape[0]).solve(*p)[0] for p in qps]
+
+    def bench(name, make, warm=True):
+        s = None
+        times, err = [], 0.0
+        for p, r in zip(qps, ref):
+            if s is None or not warm:
+                s = make(p[2].shape[0])
+            t0 = time.perf_counter()
+            x = s.solve(*p)[0]
+            times.append(time.perf_counter() - t0)
+            err = max(err, float(np.abs(x - r).max()))
+        row(name, times, f"{err:.1e}")
+
+    bench("DAQP (dual active set)", lambda m: T._DAQP(11, m))
+    bench("ProxQP dense, warm-started", lambda m: T._ProxQP(11, m))
+    bench("ProxQP dense, set up every tick", lambda m: T._ProxQP(11, m), warm=False)
+    try:
+        import qpsolvers
+        for sv in ("daqp", "proxqp"):
+            class Q:
+                def __init__(self, m, sv=sv):
+                    self.sv = sv
+
+                def solve(self, H, g, C, lo, up, lb, ub):
+                    return qpsolvers.solve_qp(H, g, C, up, lb=lb, ub=ub, solver=self.sv), None, 0
+            bench(f"qpsolvers.solve_qp({sv!r})", Q)
+    except ImportError:
+        print("| qpsolvers not installed")
+    bench("OSQP (the TSC's, updated and warm-started)", lambda m: T._OSQP(11, m))
+    bench("OSQP, set up every tick", lambda m: T._OSQP(11, m), warm=False)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated standing time (2 kHz ticks)")
@@ -169,63 +232,10 @@ def main():
     row("(state conversion, not in total)", conv)
     print(f"QP status: {status}")
 
-    # ---- the same states replayed through a fresh controller, back to back (a controller process
-    # of its own, as tsc_node: no simulator step between ticks to evict the caches)
-    best = None
-    for r in range(a.replays):
-        ctl2 = controller(a)
-        rep, rep_tick, rep_parts = [], [], {}
-        for k, (q, v, t) in enumerate(states):
-            t0 = time.perf_counter()
-            _, info = ctl2.compute(q, v, t)
-            if k >= n_w:
-                rep.append(time.perf_counter() - t0)
-                rep_tick.append(info["tick_time"])
-                for kk, vv in info["timing"].items():
-                    rep_parts.setdefault(kk, []).append(vv)
-        row(f"TOTAL compute(), replay {r + 1}", rep)
-        if best is None or np.median(rep) < np.median(best[0]):
-            best = rep, rep_tick, rep_parts
-    row("TOTAL compute(), best replay", best[0])
-    print("\nStages of the best replay")
-    stages(best[2], best[1], a.backend)
+    _replay(a, states, n_w)
     between_ticks(states[n_w:], a)
 
-    # ---- solver comparison on the recorded QPs (11 variables, 16 GRF rows + box)
-    print(f"\nQP solvers on the {len(qps)} recorded QPs (11 variables, {qps[0][2].shape[0]} inequality rows + bounds)")
-    print(f"| {'solver':<34} | {'median us':>9} | {'p99 us':>9} | {'max us':>9} | max |u - u_daqp|")
-    print(f"|{'-' * 36}|{'-' * 11}|{'-' * 11}|{'-' * 11}|{'-' * 17}")
-    ref = [T._DAQP(11, p[2].shape[0]).solve(*p)[0] for p in qps]
-
-    def bench(name, make, warm=True):
-        s = None
-        times, err = [], 0.0
-        for p, r in zip(qps, ref):
-            if s is None or not warm:
-                s = make(p[2].shape[0])
-            t0 = time.perf_counter()
-            x = s.solve(*p)[0]
-            times.append(time.perf_counter() - t0)
-            err = max(err, float(np.abs(x - r).max()))
-        row(name, times, f"{err:.1e}")
-
-    bench("DAQP (dual active set)", lambda m: T._DAQP(11, m))
-    bench("ProxQP dense, warm-started", lambda m: T._ProxQP(11, m))
-    bench("ProxQP dense, set up every tick", lambda m: T._ProxQP(11, m), warm=False)
-    try:
-        import qpsolvers
-        for sv in ("daqp", "proxqp"):
-            class Q:
-                def __init__(self, m, sv=sv):
-                    self.sv = sv
-
-                def solve(self, H, g, C, lo, up, lb, ub):
-                    return qpsolvers.solve_qp(H, g, C, up, lb=lb, ub=ub, solver=self.sv), None, 0
-            bench(f"qpsolvers.solve_qp({sv!r})", Q)
-    except ImportError:
-        print("| qpsolvers not installed")
-    bench("OSQP (the TSC's, updated and warm-started)", lambda m: T._OSQP(11, m))
-    bench("OSQP, set up every tick", lambda m: T._OSQP(11, m), warm=False)
+    _solver_comparison(qps)
 
 if __name__ == "__main__":
     main()

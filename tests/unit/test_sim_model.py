@@ -9,6 +9,7 @@ import pytest
 from cassie_flip_sim.simulator import Simulator
 
 from cassie_model import model as M
+from cassie_model import pinocchio_map as PM
 from cassie_model import robot_params as P
 from cassie_model.motor_limits import MotorLimits, torque_bounds
 
@@ -24,7 +25,7 @@ def mj():
 
 @pytest.fixture(scope="module")
 def pinm():
-    return M.pinocchio_model("I")
+    return PM.pinocchio_model("I")
 
 
 def test_mass_dofs_actuators(mj):
@@ -147,7 +148,7 @@ def _random_states(mj, n, seed=0):
 def test_pinocchio_model_structure(mj, pinm):
     assert (pinm.nq, pinm.nv) == (mj.nq, mj.nv)
     assert sum(i.mass for i in pinm.inertias) == pytest.approx(mujoco.mj_getTotalmass(mj))
-    mp = M.PinocchioMap(mj, pinm)
+    mp = PM.PinocchioMap(mj, pinm)
     # Pinocchio's "qpos0" reference configuration is MuJoCo's qpos0 (hinge refs included)
     q_ref = dict((e.key(), e.data()) for e in pinm.referenceConfigurations)["qpos0"]
     assert np.allclose(q_ref, mp.to_pin(mj.qpos0)[0])
@@ -159,7 +160,7 @@ def test_pinocchio_model_structure(mj, pinm):
 
 
 def test_state_mapping_kinematics_and_roundtrip(mj, pinm):
-    mp = M.PinocchioMap(mj, pinm)
+    mp = PM.PinocchioMap(mj, pinm)
     pd = pinm.createData()
     d = mujoco.MjData(mj)
     for qpos, qvel in _random_states(mj, 3, seed=1):
@@ -182,7 +183,7 @@ def test_state_mapping_kinematics_and_roundtrip(mj, pinm):
 def test_pinocchio_mass_matrix_and_bias_match_mujoco(mj, pinm):
     """M and h (paper eq. (1)) agree through export_mjcf + PinocchioMap (relative < 1e-8).
     MuJoCo qfrc_bias excludes passive forces; springs are compared separately."""
-    mp = M.PinocchioMap(mj, pinm)
+    mp = PM.PinocchioMap(mj, pinm)
     pd = pinm.createData()
     d = mujoco.MjData(mj)
     springs = P.spring_params()
@@ -213,10 +214,10 @@ def test_pinocchio_mass_matrix_and_bias_match_mujoco(mj, pinm):
 
 
 def test_pinocchio_loop_closures_match(mj):
-    pm, point_constraints, _ = M.pinocchio_model("I", with_constraints=True)
+    pm, point_constraints, _ = PM.pinocchio_model("I", with_constraints=True)
     assert len(point_constraints) == 4
     qpos, _ = M.standing_state(mj)
-    q, _ = M.PinocchioMap(mj, pm).to_pin(qpos)
+    q, _ = PM.PinocchioMap(mj, pm).to_pin(qpos)
     pd = pm.createData()
     pin.forwardKinematics(pm, pd, q)
     for c in point_constraints:

@@ -6,7 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cassie_model.model import PinocchioMap, export_mjcf
+from cassie_model.model import export_mjcf
+from cassie_model.pinocchio_map import PinocchioMap
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller import Controller, Domain, SampledReference, StateConverter, state_from_ros
 from tsc_controller.dynamics import Dynamics

@@ -8,7 +8,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from cassie_model.model import PinocchioMap, export_mjcf
+from cassie_model.model import export_mjcf
+from cassie_model.pinocchio_map import PinocchioMap
 from cassie_flip_sim.simulator import Simulator
 from tsc_controller.dynamics import SIDES, Dynamics
 from tsc_controller.tsc import ConstrainedDynamics

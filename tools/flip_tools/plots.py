@@ -178,28 +178,7 @@ def _fig6(data, path):
     if not have:
         _missing(ax, "L")
 
-    ax = axs[2]
-    ax.set_ylabel("normal force (N)")
-    have = False
-    w = foot_wrenches_world(data)
-    if w is not None:
-        fz = w["force"][:, :, 2]
-        ax.plot(w["t"], fz.sum(axis=1), color="C0", lw=1.2, label="measured, both feet (wrench topics)")
-        ax.plot(w["t"], fz[:, 0], color="C0", lw=0.6, alpha=0.5, label="left foot")
-        ax.plot(w["t"], fz[:, 1], color="C1", lw=0.6, alpha=0.5, label="right foot")
-        have = True
-    for i, (_dom, t, f) in enumerate(planned_normal_force(data)):
-        ax.plot(t, f, "--", color="C3", lw=1.5, label="FSLIP (plan)" if i == 0 else None)
-        have = True
-    if ce is not None and len(ce["t"]):
-        ax.plot(ce["t"], ce["left_normal_force"] + ce["right_normal_force"], "o", color="C0", ms=4,
-                label="both feet (contact events)")
-        have = True
-    mass = robot_mass(data) if have else None
-    if mass is not None:
-        ax.axhline(mass * 9.81, color="0.4", lw=0.8, ls=":", label=f"m g = {mass * 9.81:.0f} N")
-    if not have:
-        _missing(ax, "normal force")
+    _fig6_normal_force(axs, data, ce)
 
     ax = axs[3]
     ax.set_ylabel("x_com (m)")
@@ -226,6 +205,48 @@ def _fig6(data, path):
     if not have:
         _missing(ax, "/odom")
 
+    _fig6_flywheel(axs, mc, js)
+
+    for ax in axs:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best")
+        ax.grid(alpha=0.3)
+    handles = [plt.Rectangle((0, 0), 1, 1, color=DOMAIN_COLORS[d]) for d in (1, 2, 3)]
+    fig.legend(handles, [DOMAIN_NAMES[d] for d in (1, 2, 3)], loc="upper center", ncol=3, fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 0.98))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _fig6_normal_force(axs, data, ce):
+    """Fig. 6's normal-force panel: measured (wrench topics, contact events) and planned (FSLIP)."""
+    ax = axs[2]
+    ax.set_ylabel("normal force (N)")
+    have = False
+    w = foot_wrenches_world(data)
+    if w is not None:
+        fz = w["force"][:, :, 2]
+        ax.plot(w["t"], fz.sum(axis=1), color="C0", lw=1.2, label="measured, both feet (wrench topics)")
+        ax.plot(w["t"], fz[:, 0], color="C0", lw=0.6, alpha=0.5, label="left foot")
+        ax.plot(w["t"], fz[:, 1], color="C1", lw=0.6, alpha=0.5, label="right foot")
+        have = True
+    for i, (_dom, t, f) in enumerate(planned_normal_force(data)):
+        ax.plot(t, f, "--", color="C3", lw=1.5, label="FSLIP (plan)" if i == 0 else None)
+        have = True
+    if ce is not None and len(ce["t"]):
+        ax.plot(ce["t"], ce["left_normal_force"] + ce["right_normal_force"], "o", color="C0", ms=4,
+                label="both feet (contact events)")
+        have = True
+    mass = robot_mass(data) if have else None
+    if mass is not None:
+        ax.axhline(mass * 9.81, color="0.4", lw=0.8, ls=":", label=f"m g = {mass * 9.81:.0f} N")
+    if not have:
+        _missing(ax, "normal force")
+
+
+def _fig6_flywheel(axs, mc, js):
+    """Fig. 6's flywheel panels: torque commanded and applied, speed."""
     ax = axs[5]
     ax.set_ylabel("flywheel torque\n(N m)")
     have = False
@@ -246,17 +267,6 @@ def _fig6(data, path):
     else:
         _missing(ax, "flywheel speed")
     ax.set_xlabel("sim time (s)")
-
-    for ax in axs:
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7, loc="best")
-        ax.grid(alpha=0.3)
-    handles = [plt.Rectangle((0, 0), 1, 1, color=DOMAIN_COLORS[d]) for d in (1, 2, 3)]
-    fig.legend(handles, [DOMAIN_NAMES[d] for d in (1, 2, 3)], loc="upper center", ncol=3, fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1, 0.98))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def _pelvis(data, path):

@@ -105,7 +105,7 @@ def set_process_ros_env() -> None:
     """For a process that calls rclpy.init itself (flip, pytest): loopback discovery only, and the
     Fast DDS profile the launcher gives the graph's nodes (its discovery announcements: without it
     this process saw the graph ~3 s late)."""
-    from .launcher import PROFILES_ENV, fastdds_profile_file
+    from .fastdds import PROFILES_ENV, fastdds_profile_file
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.pop("ROS_LOCALHOST_ONLY", None)
     os.environ.setdefault("MUJOCO_GL", "egl")

@@ -163,6 +163,27 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     if data.start_ns is not None and data.end_ns is not None and data.end_ns >= data.start_ns:
         s["wall_time_s"] = _f((data.end_ns - data.start_ns) * 1e-9, 3)
 
+    _sim_time(s, data, notes)
+
+    t_fall, body_contact = _contact_events(s, data, kind, notes)
+
+    # ---- pelvis trajectory ---------------------------------------------------------------------
+    od = data.get("/odom")
+    if od is None or len(od["pos"]) < 2:
+        s["outcome"] = "no_data"
+        notes.append("no /odom in the bag: no verdict")
+    else:
+        _pelvis(s, od, data, kind, landing_ground_z, takeoff_ground_z, notes, body_contact)
+
+    _flywheel(s, data)
+    _motor_commands(s, data, t_fall)
+    _planner(s, data, t_fall, notes)
+    s["verdict_notes"] = notes
+    return s
+
+
+def _sim_time(s: dict, data: BagData, notes: list[str]) -> None:
+    """Sim duration, real-time factor and the steps recorded per topic, into ``s``."""
     # ---- sim duration, real-time factor: /odom (one per step, its header stamp the step's sim time;
     # /clock comes at sim_node's clock_rate), else /clock ---------------------------------------------
     ck = data.get("/clock")
@@ -193,6 +214,10 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             notes.append(f"{topic}: {r['expected'] - r['recorded']} of {r['expected']} steps not in the bag "
                          f"(the first: step {r['first_missing']})")
 
+
+def _contact_events(s: dict, data: BagData, kind: str | None, notes: list[str]) -> tuple[float, dict]:
+    """The contact events, flight time and touch-down into ``s``; returns (the first BODY_CONTACT's
+    time, inf without one; the body-contact verdict)."""
     # ---- contact events: flight time, bodies other than the feet on the ground ----------------
     ce = data.get("/contact_events")
     k = data.constants.get("flip_msgs/msg/ContactEvent") or {"LIFT_OFF": LIFT_OFF, "TOUCH_DOWN": TOUCH_DOWN}
@@ -242,15 +267,11 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             # the topic was recorded but carried nothing: the sim saw no contact change at all
             if "/contact_events" in data.topics:
                 body_contact = {"ok": None, "note": "unknown: /contact_events recorded but empty"}
+    return t_fall, body_contact
 
-    # ---- pelvis trajectory ---------------------------------------------------------------------
-    od = data.get("/odom")
-    if od is None or len(od["pos"]) < 2:
-        s["outcome"] = "no_data"
-        notes.append("no /odom in the bag: no verdict")
-    else:
-        _pelvis(s, od, data, kind, landing_ground_z, takeoff_ground_z, notes, body_contact)
 
+def _flywheel(s: dict, data: BagData) -> None:
+    """The flywheel's peak speed and applied torque, into ``s``."""
     # ---- joints: flywheel ----------------------------------------------------------------------
     js = data.get("/joint_states")
     if js is not None and "flywheel" in js["names"]:
@@ -263,6 +284,9 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
         if np.isfinite(e).any():
             s["peak_flywheel_torque_applied_nm"] = _f(np.nanmax(np.abs(e)), 2)
 
+
+def _motor_commands(s: dict, data: BagData, t_fall: float) -> None:
+    """Peak motor torques and the controller's tick times (before a fall), into ``s``."""
     # ---- motor commands: torques, controller tick ----------------------------------------------
     mc = data.get("/motor_command")
     if mc is not None and mc["effort"].size:
@@ -281,6 +305,9 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
     else:
         s["tsc_tick_us"] = None
 
+
+def _planner(s: dict, data: BagData, t_fall: float, notes: list[str]) -> None:
+    """The planner's references and solve times, and the tracking of them, into ``s``."""
     # ---- planner -------------------------------------------------------------------------------
     fr = data.get("/fslip/reference")
     if fr is not None and fr.get("refs"):
@@ -300,8 +327,6 @@ def summarize(data: BagData, kind: str | None = None, landing_ground_z: float = 
             "planned_peak_flywheel_speed_radps": _f(max(r["peak_flywheel_speed"] for r in refs), 2),
         }
         _tracking(s, data, fr["refs"], t_fall, notes)
-    s["verdict_notes"] = notes
-    return s
 
 
 def _tracking(s: dict, data: BagData, refs: list[dict], t_fall: float, notes: list[str]) -> None:
@@ -420,6 +445,12 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
     s["checks"] = checks
     s["unverified"] = [n for n, c in checks.items() if c.get("ok") is None]
 
+    _outcome(s, kind, checks, body_contact, expected, net, at_rest, notes)
+
+
+def _outcome(s, kind, checks, body_contact, expected, net, at_rest, notes):
+    """``s["outcome"]`` from the checks: standing or fell (stand, sim); else the first check a flip
+    failed (fell, body contact, off the landing ground, under- or over-rotated, not at rest) or landed."""
     upright = checks["final_tilt"]["ok"] and checks["final_height"]["ok"]
     if kind in ("stand", "sim"):
         s["outcome"] = "standing" if upright and body_contact.get("ok") is not False else "fell"

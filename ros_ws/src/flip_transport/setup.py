@@ -31,7 +31,7 @@ def rcl_extension():
     return Pybind11Extension(
         f"{package_name}._rcl_io",
         ["flip_transport/native/rcl_io.cpp"],
-        depends=["flip_transport/native/stepper_api.h"],
+        depends=sorted(str(p) for p in Path("flip_transport/native").glob("*.h")),  # stepper_api.h and rcl_io.cpp's parts
         include_dirs=inc,
         library_dirs=[str(p / "lib")],
         libraries=["rcl", "rmw", "rcutils"],

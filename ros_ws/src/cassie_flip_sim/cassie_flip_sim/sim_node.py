@@ -1,4 +1,6 @@
 """sim_node: the MuJoCo simulator as a ROS 2 node (thin adapter around ``simulator.Simulator``).
+The messages it sends are in :mod:`sim_publishing`, the commands and references it takes in
+:mod:`sim_commands`.
 
 Lockstep protocol, one 0.5 ms step k (docs/architecture.md):
   1. at a contact event, publish ``/contact_events``; while a flip plan is in force, hold until the
@@ -34,7 +36,6 @@ had not yet published, and the run its last ``/clock`` and the summary lines of 
 from __future__ import annotations
 
 import signal
-import struct
 import sys
 import time
 
@@ -44,10 +45,8 @@ from cassie_model.model import Scenario, export_mjcf
 from cassie_model.urdf import export_urdf
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from flip_transport import _rcl_io
-from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage, SubscriptionSet,
-                                     cpu_per_step_line, joint_state_layout, motor_command_layout, ns_to_stamp,
-                                     odometry_layout, pin_to_lockstep_cpu, scheduling_note, stamp_to_ns,
-                                     wrench_stamped_layout)
+from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, SubscriptionSet, cpu_per_step_line,
+                                     pin_to_lockstep_cpu, scheduling_note)
 from flip_transport.node_stop import run_until_stopped
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
@@ -58,19 +57,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from .contacts import Event
-from .foot_wrench import FOOT_LINKS, WRENCH_TOPICS
+from .foot_wrench import WRENCH_TOPICS
 from .perturbation import PlantPerturbation, parse_plant, with_landing_offset
+from .sim_commands import COMMAND_RESEND_S, PLANNER_HOLD_TIMEOUT_S, WATCHDOG_STEPS, SimCommands  # noqa: F401
+from .sim_publishing import SimPublishing, domain_entered
 from .simulator import Simulator
 
-#: longest wall time the simulator holds at a contact event for the planner's reference
-PLANNER_HOLD_TIMEOUT_S = 30.0
-#: realtime mode: steps without a fresh command before the motors go to damping (20 ms)
-WATCHDOG_STEPS = 40
 #: joint-side damping applied by the watchdog, N·m·s/rad
 WATCHDOG_DAMPING = 5.0
-#: wall time without a command before the state is sent again and the silence is reported
-COMMAND_RESEND_S = 0.05
 #: default rate of /clock, Hz: sim time for the nodes that run on it (use_sim_time), not the lockstep's
 #: step (each state carries its own stamp); at every step its three subscribers (recorder, planner,
 #: `flip`) cost the simulator's loop ~30 us of the CPU it shares with the controller (bench_graph.py)
@@ -97,16 +91,15 @@ def make_scenario(name, platform_height, ground_offset, landing_height=0.0):
     raise ValueError(f"scenario must be 'flat', 'platform' or 'raised', not {name!r}")
 
 
-def domain_entered(event):
-    """LIFT_OFF enters FLIGHT, TOUCH_DOWN enters LANDING (flip_msgs/ContactEvent domains)."""
-    return ContactEvent.DOMAIN_FLIGHT if event.kind == Event.LIFT_OFF else ContactEvent.DOMAIN_LANDING
-
 
 def _declare(node, name, default):
     return node.declare_parameter(name, default).value
 
 
-class SimNode:
+class SimNode(SimPublishing, SimCommands):
+    """The simulator node: parameters and interfaces, the stepping loop; the messages it sends in
+    :class:`SimPublishing`, the commands and references it takes in :class:`SimCommands`."""
+
     def __init__(self):
         self.stop_requested = False     # a SIGINT/SIGTERM came (request_stop): end at the step's end
         self.node = rclpy.create_node('sim_node')
@@ -166,6 +159,27 @@ class SimNode:
         wrench_rate = float(_declare(n, 'wrench_rate', WRENCH_RATE_HZ))
         self.wrench_every = max(1, int(round(1.0 / (wrench_rate * self.dt)))) if wrench_rate > 0 else 0
 
+        self._create_interfaces()
+        self._prealloc_messages()
+        self.pub_mjcf.publish(String(data=export_mjcf(self.sim.flywheel)))   # with its torque limit
+        self.pub_urdf.publish(String(data=export_urdf(self.sim.flywheel)))
+        self.command = np.zeros(11)
+        self.plan_in_force = None      # (plan_id, domain) of the newest reference seen
+        self.hold_times = []
+        self.resends = 0
+        self.reset_requested = False
+        self.body_contact = False
+        self.command_wait = None        # _rcl_io.CommandWait of a lockstep run (rcl_io)
+        self.sim_loop = None            # _rcl_io.SimLoop of a lockstep run (rcl_io, compiled_loop)
+        self.malformed_commands = 0     # /motor_command messages that were no MotorCommand (Python path)
+        self._u_in = np.zeros(11)       # the command it reads
+        self._ptr = {name: pub.handle.pointer for name, pub in
+                     (('odom', self.pub_odom), ('js', self.pub_js), ('clock', self.pub_clock))}
+
+    def _create_interfaces(self):
+        """The publishers, the command and reference subscriptions, and the services (on a second
+        node)."""
+        n = self.node
         self.pub_clock = n.create_publisher(Clock, '/clock', STREAM_QOS)
         self.pub_js = n.create_publisher(JointState, '/joint_states', STREAM_QOS)
         self.pub_odom = n.create_publisher(Odometry, '/odom', STREAM_QOS)
@@ -185,179 +199,13 @@ class SimNode:
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.srv_node)
 
-        self._prealloc_messages()
-        self.pub_mjcf.publish(String(data=export_mjcf(self.sim.flywheel)))   # with its torque limit
-        self.pub_urdf.publish(String(data=export_urdf(self.sim.flywheel)))
-        self.command = np.zeros(11)
-        self.plan_in_force = None      # (plan_id, domain) of the newest reference seen
-        self.hold_times = []
-        self.resends = 0
-        self.reset_requested = False
-        self.body_contact = False
-        self.command_wait = None        # _rcl_io.CommandWait of a lockstep run (rcl_io)
-        self.sim_loop = None            # _rcl_io.SimLoop of a lockstep run (rcl_io, compiled_loop)
-        self.malformed_commands = 0     # /motor_command messages that were no MotorCommand (Python path)
-        self._u_in = np.zeros(11)       # the command it reads
-        self._ptr = {name: pub.handle.pointer for name, pub in
-                     (('odom', self.pub_odom), ('js', self.pub_js), ('clock', self.pub_clock))}
-
-    # -- messages ----------------------------------------------------------------------------
-    def _prealloc_messages(self):
-        n = len(self.sim.joint_names)
-        self.msg_clock = RawMessage(Clock())
-        self.msg_js = RawMessage(JointState(name=list(self.sim.joint_names), position=[0.0] * n,
-                                            velocity=[0.0] * n, effort=[0.0] * n), joint_state_layout)
-        odom = Odometry(child_frame_id='pelvis')
-        odom.header.frame_id = 'world'
-        self.msg_odom = RawMessage(odom, odometry_layout)
-        self.read_command = MessageReader(motor_command_layout)
-        self.msg_wrench = []
-        for link in FOOT_LINKS:
-            w = WrenchStamped()
-            w.header.frame_id = link
-            self.msg_wrench.append(RawMessage(w, wrench_stamped_layout))
-
-    def _publish_clock(self, k):
-        if self.rcl_io:
-            _rcl_io.publish(self._ptr['clock'], self.msg_clock.buf, k * self.dt_ns)
-        else:
-            self.msg_clock.stamp(k * self.dt_ns)
-            self.pub_clock.publish(self.msg_clock.data())
-        self.clock_k = k
-
-    def _publish_state(self, k):
-        ns = k * self.dt_ns
-        js, od = self.msg_js.fields, self.msg_odom.fields
-        self.sim.state_into(js['position'], js['velocity'], js['effort'], od['pose'], od['twist'])
-        if k % self.clock_every == 0 and k != self.clock_k:
-            self._publish_clock(k)
-        if self.rcl_io:
-            _rcl_io.publish(self._ptr['odom'], self.msg_odom.buf, ns)
-            _rcl_io.publish(self._ptr['js'], self.msg_js.buf, ns)
-            return
-        for m in (self.msg_odom, self.msg_js):
-            m.stamp(ns)
-        self.pub_odom.publish(self.msg_odom.data())
-        self.pub_js.publish(self.msg_js.data())
-
-    def _publish_wrenches(self, k):
-        """The feet's wrenches of state k (the simulator's, from its step out of k), stamped k·dt."""
-        ns = k * self.dt_ns
-        for pub, msg, w in zip(self.pub_wrench, self.msg_wrench, self.sim.wrenches):
-            msg.fields['wrench'][:] = w
-            if self.rcl_io:
-                _rcl_io.publish(pub.handle.pointer, msg.buf, ns)
-            else:
-                msg.stamp(ns)
-                pub.publish(msg.data())
-
-    def _publish_event(self, k, event):
-        msg = ContactEvent()
-        ns_to_stamp(k * self.dt_ns, msg.header.stamp)
-        msg.header.frame_id = 'world'
-        msg.step = k
-        msg.event = int(event.kind)
-        msg.domain = domain_entered(event)
-        pos, quat = self.sim.pelvis_pose()
-        lin_w, ang_w = self.sim.pelvis_twist('world')
-        msg.pelvis_pose.position.x, msg.pelvis_pose.position.y, msg.pelvis_pose.position.z = map(float, pos)
-        o = msg.pelvis_pose.orientation
-        o.w, o.x, o.y, o.z = map(float, quat)
-        msg.pelvis_twist.linear.x, msg.pelvis_twist.linear.y, msg.pelvis_twist.linear.z = map(float, lin_w)
-        msg.pelvis_twist.angular.x, msg.pelvis_twist.angular.y, msg.pelvis_twist.angular.z = map(float, ang_w)
-        c, cv = self.sim.com_position(), self.sim.com_velocity()
-        msg.com_position.x, msg.com_position.y, msg.com_position.z = map(float, c)
-        msg.com_velocity.x, msg.com_velocity.y, msg.com_velocity.z = map(float, cv)
-        msg.centroidal_pitch_momentum = float(self.sim.centroidal_pitch_momentum())
-        fl, fr = self.sim.foot_normal_forces()
-        msg.left_normal_force, msg.right_normal_force = float(fl), float(fr)
-        sc = msg.support_center
-        sc.x, sc.y, sc.z = map(float, self.sim.support_center())
-        self.pub_events.publish(msg)
-        self.node.get_logger().info(
-            f"t={k * self.dt:.4f} s: {event.kind.name} -> domain {msg.domain}")
-
-    def _publish_body_contact(self, k, bodies):
-        msg = ContactEvent()
-        ns_to_stamp(k * self.dt_ns, msg.header.stamp)
-        msg.header.frame_id = ','.join(bodies)
-        msg.step = k
-        msg.event = ContactEvent.BODY_CONTACT
-        pos, quat = self.sim.pelvis_pose()
-        msg.pelvis_pose.position.x, msg.pelvis_pose.position.y, msg.pelvis_pose.position.z = map(float, pos)
-        o = msg.pelvis_pose.orientation
-        o.w, o.x, o.y, o.z = map(float, quat)
-        self.pub_events.publish(msg)
-        self.node.get_logger().warn(f't={k * self.dt:.4f} s: {", ".join(bodies)} touching the terrain')
-
-    # -- references and services -------------------------------------------------------------
-    def _note_reference(self, msg):
-        self.plan_in_force = (msg.plan_id, msg.domain, stamp_to_ns(msg.start_time))
-        if self.plant is not None and msg.domain == FlipReference.DOMAIN_JUMPING:
-            self.plant.jump_started(stamp_to_ns(msg.start_time) * 1e-9)
-
-    def _commands(self, taken):
-        """``(step, torques)`` of the serialized commands taken; references are noted."""
-        out = []
-        for topic, msg in taken:
-            if topic == '/fslip/reference':
-                self._note_reference(msg)
-                continue
-            try:
-                f = self.read_command(msg)
-            except (ValueError, IndexError, struct.error):       # not a MotorCommand's CDR
-                self.malformed_commands += 1
-                continue
-            out.append((int(f['step'][0]), f['effort']))
-        return out
-
-    def _handle_incoming(self, taken, k):
-        """Sort taken messages; return the torques for step k if they came."""
-        u = None
-        for step, effort in self._commands(taken):
-            if step == k and len(effort) == 11:
-                u = effort
-            elif step == k:
-                self._wrong_size(k, len(effort))
-        return u
-
-    def _wrong_size(self, k, n):
-        self.node.get_logger().error(f'/motor_command for step {k} has {n} torques, not 11: ignored')
-
-    def _newest_command(self, taken, k):
-        """Realtime mode: the torques of the newest well-formed command answering a recent step
-        (≤ k)."""
-        best = None
-        for step, effort in self._commands(taken):
-            if len(effort) == 11 and k - WATCHDOG_STEPS <= step <= k and (best is None or step > best[0]):
-                best = (step, effort)
-        return None if best is None else best[1]
-
+    # -- stop and services -------------------------------------------------------------------
     def request_stop(self, signum=None, frame=None):
         """Signal handler: the loop ends once the step under way has ended (see the module doc)."""
         self.stop_requested = True
 
     def _running(self):
         return not self.stop_requested and rclpy.ok()
-
-    def _hold_for_reference(self, k, domain):
-        """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
-        if self.plan_in_force is None or self.plan_in_force[1] == FlipReference.DOMAIN_STANDING:
-            return
-        t0 = time.monotonic()
-        now_ns = k * self.dt_ns
-        while time.monotonic() - t0 < PLANNER_HOLD_TIMEOUT_S:
-            pid, dom, start = self.plan_in_force
-            if dom == domain and start >= now_ns - self.dt_ns:
-                break
-            self._handle_incoming(self.subs.wait(0.1), -1)
-            if self.subs.interrupted or not self._running():
-                return
-        else:
-            self.node.get_logger().warn(
-                f'no reference for domain {domain} within {PLANNER_HOLD_TIMEOUT_S} s: continuing')
-        self.hold_times.append(time.monotonic() - t0)
-        self.node.get_logger().info(f'held {1e3 * self.hold_times[-1]:.1f} ms for the planner')
 
     def _on_reset(self, request, response):
         self.reset_requested = True
@@ -391,43 +239,10 @@ class SimNode:
     # -- main loop ---------------------------------------------------------------------------
     def run(self):
         log = self.node.get_logger()
-        need = self.min_subscribers + (1 if self.controller == 'tsc' else 0)
-        # lockstep: the controller's /motor_command matched here too (a command it sends before this side
-        # has matched it is lost, and the state re-sent after COMMAND_RESEND_S).  The first state can still
-        # be re-sent a few times (~0.25 s, in some graph runs: the controller's side of the match);
-        # summary.json reports that wait apart (first_state_wait_s)
-        cmd_sub = self.subs.subscription('/motor_command') if self.controller == 'tsc' else None
-        if need:
-            log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock'
-                     + (' and a publisher of /motor_command' if cmd_sub is not None else ''))
-            pubs = (self.pub_js, self.pub_odom, self.pub_clock)
-            while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
-                      for p in pubs) or (cmd_sub is not None and cmd_sub.get_publisher_count() < 1):
-                self.executor.spin_once(timeout_sec=0.01)
-                if not self._running():
-                    return 0
-            settled = time.monotonic() + MATCH_SETTLE_S
-            while time.monotonic() < settled and self._running():
-                self.executor.spin_once(timeout_sec=0.01)
+        if not self._wait_for_subscribers():
+            return 0
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
-        if self.rcl_io and self.mode == 'lockstep' and self.controller == 'tsc':
-            self.command_wait = _rcl_io.CommandWait(
-                self.node.context.handle.pointer, self.subs.subscription('/motor_command').handle.pointer,
-                self.subs.subscription('/fslip/reference').handle.pointer, self.subs.sigint_guard.handle.pointer)
-            parts = self.sim.native_loop_parts() if self.compiled_loop else None
-            if parts is not None:
-                js, od = self.msg_js.fields, self.msg_odom.fields
-                self.sim_loop = _rcl_io.SimLoop(
-                    self.command_wait, parts[0], self._ptr['odom'], self._ptr['js'], self._ptr['clock'],
-                    self.msg_odom.buf, self.msg_js.buf, self.msg_clock.buf, js['position'], js['velocity'],
-                    js['effort'], od['pose'], od['twist'], self.command, self._u_in, parts[1], self.dt_ns,
-                    self.clock_every, int(COMMAND_RESEND_S * 1e9), SPIN_EVERY)
-                if self.wrench_every:
-                    (left, right), (ml, mr) = self.pub_wrench, self.msg_wrench
-                    self.sim_loop.set_wrenches(left.handle.pointer, right.handle.pointer, ml.buf, mr.buf,
-                                               ml.fields['wrench'], mr.fields['wrench'], self.wrench_every)
-            elif self.compiled_loop:
-                log.warn('compiled loop unavailable for this simulator: the loop steps in Python')
+        self._start_rcl_io()
         log.info(f'running: mode={self.mode} controller={self.controller} '
                  f'duration={self.duration or "forever"} s flywheel={self.sim.flywheel} '
                  f'flywheel_torque={getattr(self.sim.flywheel, "max_torque", None)} N·m'
@@ -437,27 +252,14 @@ class SimNode:
         cpu0 = (time.process_time(), time.thread_time())
         k = 0
         self.last_state_k = -1
-        late = missing = 0
+        late = self.missing = 0
         # wall time of the loop's parts (s, summed over the steps): the per-step budget in the log
         spent = {'simulate': 0.0, 'publish state': 0.0, 'wait for command': 0.0}
         clock = time.perf_counter
-        last_cmd_k, damping = 0, False
+        self.last_cmd_k, self.damping = 0, False
         try:   # the summary also when SIGINT (KeyboardInterrupt) ends the run
             while self._running() and (n_steps is None or k < n_steps):
-                if self.reset_requested:
-                    self.sim.reset()
-                    self.reset_requested = False
-                    log.info('reset to standing')
-                for event in self.sim.pop_events():
-                    self._publish_event(k, event)
-                    if self.plant is not None:
-                        self.plant.on_event(event)
-                    if self.mode == 'lockstep':
-                        self._hold_for_reference(k, domain_entered(event))
-                touching = self.sim.body_contacts()
-                if touching and not self.body_contact:
-                    self._publish_body_contact(k, touching)
-                self.body_contact = bool(touching)
+                self._pre_step(k)
                 if self.sim_loop is not None:
                     k, handed_over = self._compiled_steps(k, n_steps, spent)
                     if handed_over is None:          # steps taken: step k's checks are this loop's
@@ -491,21 +293,7 @@ class SimNode:
                         wall0 = time.monotonic()
                         log.info(f'held at step 0 for {wall0 - t_start:.3f} s; on the wall clock from here')
                     else:
-                        cmd = self._newest_command(self.subs.take_all(), k)
-                        if cmd is not None:
-                            self.command[:] = cmd
-                            last_cmd_k = k
-                        else:
-                            missing += 1
-                            if k - last_cmd_k > WATCHDOG_STEPS:
-                                if not damping:
-                                    log.warn(f'controller silent for {(k - last_cmd_k) * self.dt * 1e3:.0f}'
-                                             ' ms: motors to damping')
-                                damping = True
-                                self.command[:] = -WATCHDOG_DAMPING * self.sim.motor_velocities()
-                        if cmd is not None and damping:
-                            log.info('controller back: damping released')
-                            damping = False
+                        self._realtime_command(k)
                 c2 = clock()
                 wrench = self.wrench_every > 0 and k % self.wrench_every == 0
                 u = self.command if self.plant is None else self.plant.command(self.sim, self.command)
@@ -525,27 +313,119 @@ class SimNode:
                 if k % SPIN_EVERY == 0:
                     self.executor.spin_once(timeout_sec=0.0)
         finally:
-            wall = time.monotonic() - wall0
-            if self.last_state_k > self.clock_k and rclpy.ok():    # sim time up to the last state sent
-                self._publish_clock(self.last_state_k)
-            sim_t = k * self.dt
-            log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
-                     f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
-                     f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
-                     + (f'; realtime: {late} late steps, {missing} steps without a new command'
-                        if self.mode == 'realtime' else ''))
-            malformed = self.malformed_commands + (self.command_wait.malformed if self.command_wait else 0)
-            if malformed:
-                log.warn(f'{malformed} /motor_command messages that are not MotorCommand CDR ignored')
-            if k:
-                per = {name: 1e6 * v / k for name, v in spent.items()}
-                per['planner holds'] = 1e6 * sum(self.hold_times) / k
-                per['rest'] = max(1e6 * wall / k - sum(per.values()), 0.0)
-                log.info('loop per step (mean us): ' + ', '.join(f'{n} {v:.0f}' for n, v in per.items()))
-                log.info(cpu_per_step_line(cpu0, k))
+            self._log_summary(k, wall0, cpu0, spent, late)
         if self.linger and n_steps is not None and k >= n_steps:
             self._linger(k)
         return 0
+
+    def _wait_for_subscribers(self):
+        """Wait for ``min_subscribers`` (and a lockstep controller) to match the state's publishers and,
+        with a controller, for its /motor_command; False when the run was stopped meanwhile."""
+        log = self.node.get_logger()
+        need = self.min_subscribers + (1 if self.controller == 'tsc' else 0)
+        # lockstep: the controller's /motor_command matched here too (a command it sends before this side
+        # has matched it is lost, and the state re-sent after COMMAND_RESEND_S).  The first state can still
+        # be re-sent a few times (~0.25 s, in some graph runs: the controller's side of the match);
+        # summary.json reports that wait apart (first_state_wait_s)
+        cmd_sub = self.subs.subscription('/motor_command') if self.controller == 'tsc' else None
+        if need:
+            log.info(f'waiting for {need} subscriber(s) of /joint_states, /odom and /clock'
+                     + (' and a publisher of /motor_command' if cmd_sub is not None else ''))
+            pubs = (self.pub_js, self.pub_odom, self.pub_clock)
+            while any(p.get_subscription_count() < (need if p is not self.pub_clock else self.min_subscribers)
+                      for p in pubs) or (cmd_sub is not None and cmd_sub.get_publisher_count() < 1):
+                self.executor.spin_once(timeout_sec=0.01)
+                if not self._running():
+                    return False
+            settled = time.monotonic() + MATCH_SETTLE_S
+            while time.monotonic() < settled and self._running():
+                self.executor.spin_once(timeout_sec=0.01)
+        return True
+
+    def _start_rcl_io(self):
+        """Lockstep with rcl_io: the command wait through rcl's C API and, with ``compiled_loop``, the
+        routine steps in C++ (_rcl_io.SimLoop; module doc)."""
+        log = self.node.get_logger()
+        if self.rcl_io and self.mode == 'lockstep' and self.controller == 'tsc':
+            self.command_wait = _rcl_io.CommandWait(
+                self.node.context.handle.pointer, self.subs.subscription('/motor_command').handle.pointer,
+                self.subs.subscription('/fslip/reference').handle.pointer, self.subs.sigint_guard.handle.pointer)
+            parts = self.sim.native_loop_parts() if self.compiled_loop else None
+            if parts is not None:
+                js, od = self.msg_js.fields, self.msg_odom.fields
+                self.sim_loop = _rcl_io.SimLoop(
+                    self.command_wait, parts[0], self._ptr['odom'], self._ptr['js'], self._ptr['clock'],
+                    self.msg_odom.buf, self.msg_js.buf, self.msg_clock.buf, js['position'], js['velocity'],
+                    js['effort'], od['pose'], od['twist'], self.command, self._u_in, parts[1], self.dt_ns,
+                    self.clock_every, int(COMMAND_RESEND_S * 1e9), SPIN_EVERY)
+                if self.wrench_every:
+                    (left, right), (ml, mr) = self.pub_wrench, self.msg_wrench
+                    self.sim_loop.set_wrenches(left.handle.pointer, right.handle.pointer, ml.buf, mr.buf,
+                                               ml.fields['wrench'], mr.fields['wrench'], self.wrench_every)
+            elif self.compiled_loop:
+                log.warn('compiled loop unavailable for this simulator: the loop steps in Python')
+
+    def _pre_step(self, k):
+        """Step k's pre-step work: a requested reset, the contact events (in lockstep held for the
+        planner's reference), a body's contact with the terrain."""
+        log = self.node.get_logger()
+        if self.reset_requested:
+            self.sim.reset()
+            self.reset_requested = False
+            log.info('reset to standing')
+        for event in self.sim.pop_events():
+            self._publish_event(k, event)
+            if self.plant is not None:
+                self.plant.on_event(event)
+            if self.mode == 'lockstep':
+                self._hold_for_reference(k, domain_entered(event))
+        touching = self.sim.body_contacts()
+        if touching and not self.body_contact:
+            self._publish_body_contact(k, touching)
+        self.body_contact = bool(touching)
+
+    def _realtime_command(self, k):
+        """Realtime, step k > 0: the newest command, or the watchdog's motor damping once the controller
+        has been silent for WATCHDOG_STEPS."""
+        log = self.node.get_logger()
+        cmd = self._newest_command(self.subs.take_all(), k)
+        if cmd is not None:
+            self.command[:] = cmd
+            self.last_cmd_k = k
+        else:
+            self.missing += 1
+            if k - self.last_cmd_k > WATCHDOG_STEPS:
+                if not self.damping:
+                    log.warn(f'controller silent for {(k - self.last_cmd_k) * self.dt * 1e3:.0f}'
+                             ' ms: motors to damping')
+                self.damping = True
+                self.command[:] = -WATCHDOG_DAMPING * self.sim.motor_velocities()
+        if cmd is not None and self.damping:
+            log.info('controller back: damping released')
+            self.damping = False
+
+    def _log_summary(self, k, wall0, cpu0, spent, late):
+        """The run's last /clock and its summary lines (also when a stop ended it): steps, real-time
+        factor, re-sends, holds, and the loop's per-step budget."""
+        log = self.node.get_logger()
+        wall = time.monotonic() - wall0
+        if self.last_state_k > self.clock_k and rclpy.ok():    # sim time up to the last state sent
+            self._publish_clock(self.last_state_k)
+        sim_t = k * self.dt
+        log.info(f'done: {k} steps, {sim_t:.3f} s sim in {wall:.3f} s wall '
+                 f'(real-time factor {sim_t / wall if wall > 0 else float("nan"):.2f}); '
+                 f'state re-sent {self.resends} times; planner holds {len(self.hold_times)}'
+                 + (f'; realtime: {late} late steps, {self.missing} steps without a new command'
+                    if self.mode == 'realtime' else ''))
+        malformed = self.malformed_commands + (self.command_wait.malformed if self.command_wait else 0)
+        if malformed:
+            log.warn(f'{malformed} /motor_command messages that are not MotorCommand CDR ignored')
+        if k:
+            per = {name: 1e6 * v / k for name, v in spent.items()}
+            per['planner holds'] = 1e6 * sum(self.hold_times) / k
+            per['rest'] = max(1e6 * wall / k - sum(per.values()), 0.0)
+            log.info('loop per step (mean us): ' + ', '.join(f'{n} {v:.0f}' for n, v in per.items()))
+            log.info(cpu_per_step_line(cpu0, k))
 
     def _linger(self, k):
         """The run is over (its duration; /clock stands at its last state): serve nothing but
@@ -553,36 +433,6 @@ class SimNode:
         self.node.get_logger().info(f'lingering at sim t = {k * self.dt:.3f} s until stopped')
         while self._running():
             self.executor.spin_once(timeout_sec=0.05)
-
-    def _take_references(self):
-        sub = self.subs.subscription('/fslip/reference')
-        while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-            self._note_reference(got[0])
-
-    def _wait_command(self, k):
-        if self.command_wait is not None:
-            return self._wait_command_rcl(k)
-        t_sent = time.monotonic()
-        warned = False
-        while True:
-            cmd = self._handle_incoming(self.subs.wait(COMMAND_RESEND_S), k)
-            if cmd is not None:
-                return cmd
-            if self.subs.interrupted or not self._running():
-                return None
-            if time.monotonic() - t_sent >= COMMAND_RESEND_S:
-                warned = self._send_again(k, time.monotonic() - t_sent, warned)
-
-    def _send_again(self, k, silent_s, warned):
-        """No command for step k within COMMAND_RESEND_S: send the state again (and serve the
-        services), warn once the controller has been silent for a second. Returns whether it has."""
-        self.resends += 1
-        if not warned and silent_s > 1.0:
-            self.node.get_logger().warn(f'controller silent for step {k}: waiting')
-            warned = True
-        self._publish_state(k)
-        self.executor.spin_once(timeout_sec=0.0)
-        return warned
 
     def _compiled_steps(self, k, n_steps, spent):
         """Steps from k (its pre-step checks done) in the compiled loop until it hands back (module
@@ -602,31 +452,6 @@ class SimNode:
         if lp.last_state_k >= 0:
             self.last_state_k = lp.last_state_k
         return k, ((lp.wait_status, lp.wait_t0) if reason == lp.WAIT else None)
-
-    def _wait_command_rcl(self, k, status=None, t_first=None):
-        """_wait_command through _rcl_io.CommandWait: the torques of step k (a view of the command
-        buffer), or None when interrupted. ``status``, ``t_first``: of a first wait already made (by
-        the compiled loop) and when (time.monotonic) it began."""
-        cw, u = self.command_wait, self._u_in
-        t_first = t_sent = time.monotonic() if t_first is None else t_first
-        warned = False
-        while True:
-            if status is None:
-                left = COMMAND_RESEND_S - (time.monotonic() - t_sent)
-                status = cw.wait(k, max(int(left * 1e9), 0), u)
-            if status == cw.GOT:
-                return u
-            if status == cw.INTERRUPTED or not self._running():
-                self.subs.interrupted = True
-                return None
-            if status == cw.REFERENCE:
-                self._take_references()
-            elif status == cw.WRONG_SIZE:
-                self._wrong_size(k, cw.last_count)
-            else:                                          # TIMEOUT
-                warned = self._send_again(k, time.monotonic() - t_first, warned)
-                t_sent = time.monotonic()
-            status = None
 
     def close_io(self):
         if self.command_wait is not None:

@@ -1,6 +1,7 @@
 """Cassie + flywheel model: MJCF export (the one source for MuJoCo and Pinocchio), scenarios,
 MuJoCo model build (``mujoco.MjSpec``), standing state on the loop-closure manifold (and the
-figures a planner takes of it: mass, COM, leg length), and the MuJoCo <-> Pinocchio state mapping.
+figures a planner takes of it: mass, COM, leg length); the MuJoCo <-> Pinocchio state mapping is in
+:mod:`cassie_model.pinocchio_map`.
 
 Built from :mod:`cassie_model.robot_params` only.  Robot geometry uses primitives; only the
 foot contact spheres collide, and only with the terrain.
@@ -49,6 +50,47 @@ def _f(*vals) -> str:
     return " ".join(repr(float(v)) for v in vals)
 
 
+def _visual_geoms(lines: list, b: P.Body, children: dict, indent: str):
+    """The massless visual geoms of body ``b`` and, on a foot, its contact spheres and toe/heel sites."""
+    # visual primitives (massless): pelvis box, capsules towards the children
+    if b.parent == "world":
+        lines.append(f'{indent}  <geom name="pelvis_vis" type="box" size="0.08 0.12 0.06" pos="0.03 0 0.03"/>')
+    for c in children.get(b.name, []):
+        if np.linalg.norm(c.pos) > 1e-3 and b.parent != "world":
+            lines.append(f'{indent}  <geom type="capsule" size="0.015" fromto="0 0 0 {_f(*c.pos)}"/>')
+    if b.name.endswith("_achilles_rod") or b.name.endswith("_plantar_rod"):
+        length = 0.5012 if b.name.endswith("_achilles_rod") else 0.35012
+        lines.append(f'{indent}  <geom type="capsule" size="0.008" fromto="0 0 0 {length!r} 0 0"/>')
+    if b.name.endswith("_tarsus") or b.name.endswith("_heel_spring") or b.name.endswith("_shin"):
+        tip = {"_tarsus": (0.43, -0.04, 0), "_heel_spring": (0.1, 0, 0), "_shin": (0.43476, 0, 0)}
+        for k, v in tip.items():
+            if b.name.endswith(k):
+                lines.append(f'{indent}  <geom type="capsule" size="0.02" fromto="0 0 0 {_f(*v)}"/>')
+    if b.name.endswith("_foot") and b.parent.endswith("_tarsus"):
+        side = b.name.split("_")[0]
+        h, t, r = P.FOOT_HEEL, P.FOOT_TOE, P.FOOT_RADIUS
+        lines.append(f'{indent}  <geom type="capsule" size="0.012" fromto="{_f(*h, *t)}"/>')
+        for gname, pt in zip(FOOT_GEOMS[side], (h, t)):
+            lines.append(f'{indent}  <geom name="{gname}" type="sphere" size="{r!r}" pos="{_f(*pt)}" '
+                         f'contype="1" conaffinity="0" condim="3" friction="{_f(*P.FRICTION)}" group="3" '
+                         f'rgba="0.2 0.2 0.2 1"/>')
+        lines.append(f'{indent}  <site name="{side}_foot_heel" pos="{_f(*h)}"/>')
+        lines.append(f'{indent}  <site name="{side}_foot_toe" pos="{_f(*t)}"/>')
+
+
+def _flywheel_xml(lines: list, fw, indent: str):
+    """The flywheel body (inertia, hinge about y, visual disc) inside the pelvis."""
+    ind = indent + "  "
+    lines.append(f'{ind}<body name="flywheel" pos="0 0 {fw.height!r}">')
+    lines.append(f'{ind}  <inertial pos="0 0 0" mass="{fw.mass!r}" '
+                 f'diaginertia="{_f(fw.inertia_transverse, fw.inertia_pitch, fw.inertia_transverse)}"/>')
+    lines.append(f'{ind}  <joint name="flywheel" type="hinge" axis="0 1 0"/>')
+    lines.append(f'{ind}  <geom type="cylinder" size="{_f(fw.radius, fw.thickness / 2)}" '
+                 f'quat="0.7071067811865476 0.7071067811865476 0 0" rgba="0.6 0.6 0.65 1"/>')
+    lines.append(f'{ind}  <geom type="box" size="0.01 {fw.thickness / 2 + 0.002!r} {0.9 * fw.radius!r}" rgba="0.1 0.1 0.1 1"/>')
+    lines.append(f"{ind}</body>")
+
+
 def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywheel") -> str:
     """Robot MJCF (no terrain) that both MuJoCo and Pinocchio load.
 
@@ -94,42 +136,11 @@ def export_mjcf(flywheel: FlywheelSpec = "I", *, model_name: str = "cassie_flywh
             if j.armature:
                 a += f' armature="{j.armature!r}"'
             lines.append(f"{indent}  <joint {a}/>")
-        # visual primitives (massless): pelvis box, capsules towards the children
-        if b.parent == "world":
-            lines.append(f'{indent}  <geom name="pelvis_vis" type="box" size="0.08 0.12 0.06" pos="0.03 0 0.03"/>')
-        for c in children.get(b.name, []):
-            if np.linalg.norm(c.pos) > 1e-3 and b.parent != "world":
-                lines.append(f'{indent}  <geom type="capsule" size="0.015" fromto="0 0 0 {_f(*c.pos)}"/>')
-        if b.name.endswith("_achilles_rod") or b.name.endswith("_plantar_rod"):
-            length = 0.5012 if b.name.endswith("_achilles_rod") else 0.35012
-            lines.append(f'{indent}  <geom type="capsule" size="0.008" fromto="0 0 0 {length!r} 0 0"/>')
-        if b.name.endswith("_tarsus") or b.name.endswith("_heel_spring") or b.name.endswith("_shin"):
-            tip = {"_tarsus": (0.43, -0.04, 0), "_heel_spring": (0.1, 0, 0), "_shin": (0.43476, 0, 0)}
-            for k, v in tip.items():
-                if b.name.endswith(k):
-                    lines.append(f'{indent}  <geom type="capsule" size="0.02" fromto="0 0 0 {_f(*v)}"/>')
-        if b.name.endswith("_foot") and b.parent.endswith("_tarsus"):
-            side = b.name.split("_")[0]
-            h, t, r = P.FOOT_HEEL, P.FOOT_TOE, P.FOOT_RADIUS
-            lines.append(f'{indent}  <geom type="capsule" size="0.012" fromto="{_f(*h, *t)}"/>')
-            for gname, pt in zip(FOOT_GEOMS[side], (h, t)):
-                lines.append(f'{indent}  <geom name="{gname}" type="sphere" size="{r!r}" pos="{_f(*pt)}" '
-                             f'contype="1" conaffinity="0" condim="3" friction="{_f(*P.FRICTION)}" group="3" '
-                             f'rgba="0.2 0.2 0.2 1"/>')
-            lines.append(f'{indent}  <site name="{side}_foot_heel" pos="{_f(*h)}"/>')
-            lines.append(f'{indent}  <site name="{side}_foot_toe" pos="{_f(*t)}"/>')
+        _visual_geoms(lines, b, children, indent)
         for c in children.get(b.name, []):
             body_xml(c, indent + "  ")
         if b.parent == "world" and fw is not None:
-            ind = indent + "  "
-            lines.append(f'{ind}<body name="flywheel" pos="0 0 {fw.height!r}">')
-            lines.append(f'{ind}  <inertial pos="0 0 0" mass="{fw.mass!r}" '
-                         f'diaginertia="{_f(fw.inertia_transverse, fw.inertia_pitch, fw.inertia_transverse)}"/>')
-            lines.append(f'{ind}  <joint name="flywheel" type="hinge" axis="0 1 0"/>')
-            lines.append(f'{ind}  <geom type="cylinder" size="{_f(fw.radius, fw.thickness / 2)}" '
-                         f'quat="0.7071067811865476 0.7071067811865476 0 0" rgba="0.6 0.6 0.65 1"/>')
-            lines.append(f'{ind}  <geom type="box" size="0.01 {fw.thickness / 2 + 0.002!r} {0.9 * fw.radius!r}" rgba="0.1 0.1 0.1 1"/>')
-            lines.append(f"{ind}</body>")
+            _flywheel_xml(lines, fw, indent)
         lines.append(f"{indent}</body>")
 
     body_xml(P.PELVIS, "    ")
@@ -368,129 +379,3 @@ def standing_figures(flywheel: FlywheelSpec = "I") -> StandingFigures:
     return StandingFigures(mass=float(mujoco.mj_getTotalmass(model)), com=d.subtree_com[pelvis].copy(),
                            pelvis_position=d.qpos[0:3].copy(), pelvis_quaternion=d.qpos[3:7].copy(),
                            leg_length=float(np.mean(legs)))
-
-
-# --------------------------------------------------------------------------------------------
-# MuJoCo <-> Pinocchio state mapping
-# --------------------------------------------------------------------------------------------
-
-class PinocchioMap:
-    """Maps MuJoCo (qpos, qvel) to Pinocchio (q, v) and back, joint by joint by name.
-
-    Conventions (checked in tests/unit/test_sim_model.py): quaternions wxyz (MuJoCo) vs xyzw
-    (Pinocchio) for the free joint and the balls; free-joint linear velocity in the world frame
-    (MuJoCo) vs the pelvis frame (Pinocchio); angular velocities of free and ball joints are
-    local in both.  Hinges with ``ref`` (knees -45°, tarsi 58°): the angle is the same number in
-    both (q_pin = qpos; Pinocchio's ``referenceConfigurations["qpos0"]`` = MuJoCo qpos0), BUT
-    pin 4.1 stores ``lower/upperPositionLimit`` of those joints shifted by -ref — use the ranges
-    of :mod:`robot_params` instead.  Pinocchio reads ``armature`` (model.armature) but adds no
-    joint springs or damping to its dynamics: add -K (qpos - rest) yourself
-    (:func:`robot_params.spring_params`).
-    """
-
-    def __init__(self, mj_model: mujoco.MjModel, pin_model):
-        self.nq, self.nv = pin_model.nq, pin_model.nv
-        self.items = []   # (type, mj_qadr, mj_vadr, pin_qadr, pin_vadr, ref)
-        for jid in range(1, pin_model.njoints):
-            name = pin_model.names[jid]
-            mj = mujoco.mj_name2id(mj_model, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if mj < 0:
-                raise KeyError(f"joint {name} not in MuJoCo model")
-            t = int(mj_model.jnt_type[mj])
-            qa, va = int(mj_model.jnt_qposadr[mj]), int(mj_model.jnt_dofadr[mj])
-            ref = 0.0   # hinge angles are identical (see class doc)
-            self.items.append((t, qa, va, pin_model.idx_qs[jid], pin_model.idx_vs[jid], ref))
-
-    def to_pin(self, qpos, qvel=None):
-        """(q, v) for Pinocchio from MuJoCo (qpos, qvel)."""
-        q = np.zeros(self.nq)
-        v = np.zeros(self.nv)
-        for t, qa, va, pq, pv, ref in self.items:
-            if t == mujoco.mjtJoint.mjJNT_FREE:
-                q[pq:pq + 3] = qpos[qa:qa + 3]
-                q[pq + 3:pq + 7] = np.r_[qpos[qa + 4:qa + 7], qpos[qa + 3]]
-                if qvel is not None:
-                    R = np.zeros(9)
-                    mujoco.mju_quat2Mat(R, qpos[qa + 3:qa + 7])
-                    v[pv:pv + 3] = R.reshape(3, 3).T @ qvel[va:va + 3]
-                    v[pv + 3:pv + 6] = qvel[va + 3:va + 6]
-            elif t == mujoco.mjtJoint.mjJNT_BALL:
-                q[pq:pq + 4] = np.r_[qpos[qa + 1:qa + 4], qpos[qa]]
-                if qvel is not None:
-                    v[pv:pv + 3] = qvel[va:va + 3]
-            else:
-                q[pq] = qpos[qa] - ref
-                if qvel is not None:
-                    v[pv] = qvel[va]
-        return q, v
-
-    def to_mujoco(self, q, v=None, mj_nq=None, mj_nv=None):
-        """(qpos, qvel) for MuJoCo from Pinocchio (q, v)."""
-        qpos = np.zeros(mj_nq or self.nq)
-        qvel = np.zeros(mj_nv or self.nv)
-        for t, qa, va, pq, pv, ref in self.items:
-            if t == mujoco.mjtJoint.mjJNT_FREE:
-                qpos[qa:qa + 3] = q[pq:pq + 3]
-                qpos[qa + 3:qa + 7] = np.r_[q[pq + 6], q[pq + 3:pq + 6]]
-                if v is not None:
-                    R = np.zeros(9)
-                    mujoco.mju_quat2Mat(R, qpos[qa + 3:qa + 7])
-                    qvel[va:va + 3] = R.reshape(3, 3) @ v[pv:pv + 3]
-                    qvel[va + 3:va + 6] = v[pv + 3:pv + 6]
-            elif t == mujoco.mjtJoint.mjJNT_BALL:
-                qpos[qa:qa + 4] = np.r_[q[pq + 3], q[pq:pq + 3]]
-                if v is not None:
-                    qvel[va:va + 3] = v[pv:pv + 3]
-            else:
-                qpos[qa] = q[pq] + ref
-                if v is not None:
-                    qvel[va] = v[pv]
-        return qpos, qvel
-
-    def vel_matrix(self, qpos) -> np.ndarray:
-        """T(qpos) with v_pin = T qvel (a permutation, plus R^T on the free linear block).
-        Generalized forces map as tau_mujoco = T^T tau_pin; T is orthogonal."""
-        T = np.zeros((self.nv, self.nv))
-        T[np.arange(self.nv), self.dof_perm()] = 1.0
-        for t, qa, va, pq, pv, ref in self.items:
-            if t == mujoco.mjtJoint.mjJNT_FREE:
-                R = np.zeros(9)
-                mujoco.mju_quat2Mat(R, qpos[qa + 3:qa + 7])
-                T[pv:pv + 3, va:va + 3] = R.reshape(3, 3).T
-        return T
-
-    def acc_offset(self, v_pin) -> np.ndarray:
-        """a0 with v̇_pin = T q̈_mujoco + a0: the free-joint linear block is -ω × v_lin (local),
-        since d/dt(Rᵀ v_world) = -ω × Rᵀ v_world.  Hence
-        MuJoCo qfrc_bias = Tᵀ · pinocchio.rnea(q, v, a0) (= Tᵀ rnea(q, v, 0) only if ω × v = 0)."""
-        a0 = np.zeros(self.nv)
-        for t, qa, va, pq, pv, ref in self.items:
-            if t == mujoco.mjtJoint.mjJNT_FREE:
-                a0[pv:pv + 3] = -np.cross(v_pin[pv + 3:pv + 6], v_pin[pv:pv + 3])
-        return a0
-
-    def dof_perm(self) -> np.ndarray:
-        """Index array p with v_pin[i] ~ qvel[p[i]] (same frames except free linear velocity)."""
-        p = np.zeros(self.nv, dtype=int)
-        for t, qa, va, pq, pv, ref in self.items:
-            n = {mujoco.mjtJoint.mjJNT_FREE: 6, mujoco.mjtJoint.mjJNT_BALL: 3}.get(t, 1)
-            p[pv:pv + n] = np.arange(va, va + n)
-        return p
-
-
-def pinocchio_model(flywheel: FlywheelSpec = "I", with_constraints: bool = False):
-    """Pinocchio model (and, if asked, its loop-closure constraint models) from :func:`export_mjcf`."""
-    import os
-    import tempfile
-
-    import pinocchio as pin
-    xml = export_mjcf(flywheel)
-    with tempfile.NamedTemporaryFile("w", suffix=".xml", delete=False) as f:
-        f.write(xml)
-        path = f.name
-    try:
-        if with_constraints:
-            return pin.buildModelAndConstraintsFromMJCF(path)
-        return pin.buildModelFromMJCF(path)
-    finally:
-        os.unlink(path)

@@ -235,13 +235,8 @@ FRICTION = (1.0, 0.005, 0.0001)   # MuJoCo default sliding/torsional/rolling fri
 INTEGRATOR = "Euler"              # published model uses the default (Euler; damping implicit)
 # Friction cone: elliptic, impratio 100 (MuJoCo's defaults: pyramidal, 1).  MuJoCo's soft contacts
 # let a foot under a steady tangential load well inside the friction cone creep, at a rate that falls
-# with impratio.  Standing under a steady 15 N*m twist at the pelvis (~210 N on each foot), the feet
-# turned on the spot by 49 deg in 3.5 s with the defaults, 4.8 deg with elliptic / 10, 1.6 with 30,
-# 0.5 with 100 (tests/offline/test_tsc_standing.py).  After a 1 m frontflip (flip A) the feet turned by
-# 20-30 deg over 10 s of standing under the hip yaw torques and the robot fell.  Measured offline
-# (scripts/bench_landings.py, 30 start times each), landed backflips, frontflips, C, A, D:
-# defaults 30, 29, 30, 15, 24; with the STANDING COM kd 40 of tsc_controller (the last two),
-# elliptic / 10: 30, 27, 30, 29, 24; elliptic / 100: 30, 29, 30, 28, 28.
+# with impratio (the feet turning on the spot while standing: docs/measurements.md, Planner and
+# robot-model values).
 CONE = "elliptic"
 IMPRATIO = 100.0
 

@@ -58,8 +58,8 @@ def trapezoid(y0, v0, y1, T, a, t):
     """Rotation profile limited to |ÿ| ≤ a: from (y0, v0) to (y1, 0) in T — ramp to a cruise rate,
     hold it, ramp to rest (the cruise rate found by bisection).  None if no such profile exists.
     The flywheel turns the rest of the body at most at τ_max / I_rest; a cubic asks for its peak
-    acceleration 6 Δθ / T² at both ends and saturates the flywheel motor (measured: a 0.48 s backflip
-    flight turned 550° instead of 360°)."""
+    acceleration 6 Δθ / T² at both ends and saturates the flywheel motor (docs/measurements.md,
+    Planner and robot-model values)."""
     d = y1 - y0
 
     def area(w):
@@ -136,9 +136,8 @@ def flight_plan(kind, theta0, omega0, zdot, beta_lo, L_lo, platform=0.0, L_tuck=
     ``max_body_acc`` (rad/s², the flywheel torque limit over the rest of the body's inertia): the
     pitch profile is a :func:`trapezoid` within it when one exists; else, with ``hard_body_acc`` (the
     full torque limit over that inertia), the trapezoid of the least acceleration up to it that turns
-    the body in T (a bang-bang turn needs 4 Δθ / T², the cubic 6 Δθ / T² at both ends: measured, a
-    0.69 s backflip plan fell back to the cubic, asked 83 rad/s² ≈ 220 N·m of a 195 N·m flywheel at
-    the end and over-rotated by 1.6 rad); else the paper's cubic.  ``L_land``: leg length at
+    the body in T (a bang-bang turn needs 4 Δθ / T², the cubic 6 Δθ / T² at both ends: it
+    over-rotates, docs/measurements.md, Planner and robot-model values); else the paper's cubic.  ``L_land``: leg length at
     touch-down (default: the lift-off length)."""
     if kind not in SIGN:
         raise ValueError(f"unknown kind {kind!r}")

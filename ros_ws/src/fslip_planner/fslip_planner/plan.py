@@ -1,5 +1,6 @@
 """Planner API used by ``planner_node`` and ``scripts/flip plan``: :class:`FlipSession`
-(jumping → flight → landing), :func:`plan_flip`, :class:`MeasuredState`, :class:`InfeasibleRequest`.
+(jumping → flight → landing), :func:`plan_flip`, :class:`MeasuredState`, :class:`InfeasibleRequest`
+(the states and references defined in :mod:`plan_types`).
 
 FSLIP knots → robot outputs (paper §V-A, eq. Y^{J/L}): ``H_pitch`` = H (the FSLIP flywheel
 momentum I(L)θ̇ = whole-robot centroidal pitch momentum; d = τ, dd = τ̇), ``L`` = r + F^s/K
@@ -12,8 +13,8 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from dataclasses import dataclass
+from typing import Dict, Optional
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from . import jumping as Jm
 from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck, rotation_xyzw,
                           standing_com_x, unreachable_message, validate_inputs)
 from .landing import LandingProblem
+from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
            "plan_flip", "default_apex", "standing_com_x"]
@@ -41,61 +43,10 @@ JUMPING, FLIGHT, LANDING = 1, 2, 3
 #: planned from this lean
 MAX_TOUCHDOWN_LEAN = math.radians(45.0)
 
-
-
-@dataclass
-class MeasuredState:
-    """Floating-base state at a contact event (world frame, SI units); ``support_center`` is the
-    centre of the feet's contact points (the FSLIP's foot), None where it is not known."""
-    t: float
-    com: np.ndarray
-    com_velocity: np.ndarray
-    pitch_momentum: float
-    pelvis_pitch: float
-    pelvis_pitch_rate: float
-    support_center: Optional[np.ndarray] = None
-
-
-@dataclass
-class PelvisState:
-    """The pelvis as ``/odom`` carries it: world position, orientation quaternion (x, y, z, w), and
-    linear and angular velocity in the pelvis frame (REP 105); with the flywheel's speed."""
-    t: float
-    position: np.ndarray
-    orientation: np.ndarray
-    linear_velocity: np.ndarray
-    angular_velocity: np.ndarray
-    #: the flywheel joint's speed (rad/s, /joint_states); None: not measured
-    flywheel_speed: float | None = None
-
-
-@dataclass
-class Reference:
-    """Sampled reference for the controller: ``value``/``d_value``/``dd_value`` are (n, k)."""
-    domain: int
-    t: np.ndarray
-    names: List[str]
-    value: np.ndarray
-    d_value: np.ndarray
-    dd_value: np.ndarray
-    parameters: Dict[str, float] = field(default_factory=dict)
-    figures: Dict[str, float] = field(default_factory=dict)
-
-    @property
-    def duration(self):
-        return float(self.t[-1])
-
-    def column(self, name):
-        i = self.names.index(name)
-        return self.value[:, i], self.d_value[:, i], self.dd_value[:, i]
-
-
 #: share of the flywheel torque limit the flight's pitch profile may use (the rest is the feedback's)
 FLYWHEEL_TORQUE_SHARE = 0.7
 #: touch-down leg length = standing length + this (m), not the lift-off length: a leg nearly straight
-#: at touch-down (0.98 m) cannot brake the fall — measured after a backflip (motor speed scale 3,
-#: apex 1.3 m, touch-down at 2.7 m/s): knee torques ~0, the feet unloaded 70 ms after touch-down and
-#: the legs folded at the fall speed; at 0.90 m the fall was caught (2.45 -> 0.6 m/s in 0.1 s)
+#: at touch-down cannot brake the fall (docs/measurements.md, Planner and robot-model values)
 LANDING_LEG_EXTENSION = 0.04
 
 

@@ -2,9 +2,10 @@
 
 Plain-Python core (no ROS): :mod:`dynamics` (Pinocchio terms), :mod:`outputs` (paper §V-A),
 :mod:`tsc` and :mod:`limits` (the torque-only QP of §V-B), :mod:`domains` (domain switching and the
-:class:`Controller` facade), :mod:`reference` (:class:`Domain`, :class:`SampledReference`),
-:mod:`profiles` (quintic and leg-catch profiles), :mod:`config` (:class:`ControllerConfig`, its
-overrides from JSON), :mod:`state` (contract arrays -> q, v).
+:class:`Controller` facade), the domains' objects (:mod:`standing`, :mod:`jumping`, :mod:`flight`,
+:mod:`landing`, their shared :mod:`ground_targets`, :mod:`domain_outputs`), :mod:`reference`
+(:class:`Domain`, :class:`SampledReference`), :mod:`profiles` (quintic and leg-catch profiles),
+:mod:`config` (:class:`ControllerConfig`, its overrides from JSON), :mod:`state` (contract arrays -> q, v).
 """
 from .config import ControllerConfig  # noqa: F401
 from .domains import Controller  # noqa: F401

@@ -294,8 +294,8 @@ class JointPositions(Output):
 class FootPitch(Output):
     """Toe pitch: angle of the heel->toe line above the horizontal, atan2(z_toe - z_heel, x_toe - x_heel)
     (0 = flat, + = toe up), mean of the feet.  An angle, not its sine (z_toe - z_heel)/l: the sine's
-    gradient vanishes as the foot nears vertical, where a frontflip's held foot is at T1 (measured:
-    sine 0.99, then still 0.67 = toes 42 deg up at touch-down 0.13 s later)."""
+    gradient vanishes as the foot nears vertical, where a frontflip's held foot is at T1
+    (docs/tuning.md, Outputs)."""
 
     def __init__(self, name="toe_pitch", sides=SIDES, **kw):
         super().__init__(name, **kw)

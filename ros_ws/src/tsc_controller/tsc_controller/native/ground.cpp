@@ -1,5 +1,5 @@
 // Compiled targets of the ground domains (tsc_controller._native.GroundTargets): what
-// domains.GroundTargets computes per tick in STANDING, LANDING and JUMPING before the QP, in one call —
+// ground_targets.GroundTargets computes per tick in STANDING, LANDING and JUMPING before the QP, in one call —
 // the feet's contact and anchors (update_feet), the pitch momentum's removal (_momentum_removal),
 // the leg catch (_leg_catch, leg_catch) and the quintic blends of COM and pelvis from the state at
 // the domain's entry to the standing targets (targets, quintic).  The same operations in

@@ -147,28 +147,7 @@ public:
     py::list sets = t["row_sets"];
     for (auto s : sets)
       row_sets_.push_back(to_idx(s.cast<IArr>()));
-    // buffers
-    q.setZero(nq_);
-    v.setZero(nv_);
-    Minv_.setZero(nv_, nv_);
-    BH_.setZero(nv_, nu_ + 1);
-    for (long i = 0; i < nu_; ++i)
-      BH_(motor_v_[i], i) = 1.0;
-    tau_p_.setZero(nv_);
-    Ag_.setZero(6, nv_);
-    dAg_v_.setZero(6);
-    hg_.setZero(6);
-    com_.setZero(3);
-    R_base_.setZero();
-    P_.setZero(n_, 3);
-    pdot_.setZero(n_, 3);
-    omega_.setZero(n_, 3);
-    pt_rows_.setZero(3 * n_, nv_ + 1);
-    rows_.setZero(nr_ + spring_Jd_.rows(), nv_ + 1);
-    rows_.bottomRows(spring_Jd_.rows()) = spring_Jd_;
-    Sv_.resize(nv_, n_);
-    Swv_.resize(nv_, 2 * n_);
-    blk_.resize(n_blk_ * 3, 3);
+    allocate_buffers();
   }
 
   /// All terms of one tick from (q, v); see dynamics.Dynamics.update.
@@ -274,6 +253,32 @@ public:
   }
 
 private:
+  // the per-tick buffers, zeroed, in their sizes; the constant rows of the springs in place
+  void allocate_buffers()
+  {
+    q.setZero(nq_);
+    v.setZero(nv_);
+    Minv_.setZero(nv_, nv_);
+    BH_.setZero(nv_, nu_ + 1);
+    for (long i = 0; i < nu_; ++i)
+      BH_(motor_v_[i], i) = 1.0;
+    tau_p_.setZero(nv_);
+    Ag_.setZero(6, nv_);
+    dAg_v_.setZero(6);
+    hg_.setZero(6);
+    com_.setZero(3);
+    R_base_.setZero();
+    P_.setZero(n_, 3);
+    pdot_.setZero(n_, 3);
+    omega_.setZero(n_, 3);
+    pt_rows_.setZero(3 * n_, nv_ + 1);
+    rows_.setZero(nr_ + spring_Jd_.rows(), nv_ + 1);
+    rows_.bottomRows(spring_Jd_.rows()) = spring_Jd_;
+    Sv_.resize(nv_, n_);
+    Swv_.resize(nv_, 2 * n_);
+    blk_.resize(n_blk_ * 3, 3);
+  }
+
   // positions, Jacobians, drifts, velocities of the points (dynamics.py module doc)
   void point_table(const Eigen::Ref<const Vec> & v)
   {

@@ -1,0 +1,122 @@
+"""The FLIGHT domain: :class:`Flight`."""
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from . import outputs as O
+from .config import ControllerConfig
+from .domain_outputs import _mk
+from .dynamics import SIDES, Dynamics
+from .reference import Domain
+from .tsc import Desired
+
+MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
+MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
+
+
+class Flight:
+    """FLIGHT: the flywheel's momentum (eq. Y^F_1) or, with a planned pelvis pitch, that pitch; per-leg
+    length; before T1 the motor joints but the knees held at their lift-off values (and, in a
+    somersault, the pelvis axis along world y), after T1 the feet placed for the touch-down (leg
+    angle, toe pitch) and the hips' roll and yaw held (eq. Y^F_2)."""
+    domain = Domain.FLIGHT
+
+    def __init__(self, dyn: Dynamics, cfg: ControllerConfig, pitch):
+        """``pitch``: the controller's unwrapped sagittal pelvis pitch, a callable."""
+        self.dyn, self.cfg = dyn, cfg
+        g = cfg.gains
+        self.o_Hfw = _mk(O.FlywheelMomentum, "H_flywheel", g)
+        self.o_pitch = _mk(O.SagittalPitch, "pitch", g, source=pitch)
+        self.o_axis = _mk(O.PelvisAxisTilt, "axis", g)
+        self._z2 = np.zeros(2)
+        self.o_Lleg = [_mk(O.LegLength, f"L_{s}", g, "L_leg", sides=(s,)) for s in SIDES]
+        self.o_beta = [_mk(O.LegAngle, f"beta_{s}", g, "beta_leg", sides=(s,)) for s in SIDES]
+        self._beta_w0 = self.o_beta[0].weight
+        self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
+        self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
+        self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
+        self.state = None                # the lift-off posture and momentum (the first FLIGHT tick's)
+
+    def enter(self):
+        self.state = None
+
+    def task(self, t, ref, t_enter, pitch, somersault, u_prev):
+        """Outputs and desired values at t; ``pitch``: the unwrapped pelvis pitch now; ``u_prev``:
+        the last command (its flywheel torque)."""
+        dyn = self.dyn
+        tau = t - t_enter + self.cfg.flight_lead
+        if self.state is None:
+            q_pre = self.o_j_pre.evaluate(dyn)[0]
+            self.state = dict(
+                H=self.o_Hfw.evaluate(dyn)[0], L=[o.evaluate(dyn)[0] for o in self.o_Lleg],
+                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0],
+                beta=[o.evaluate(dyn)[0] for o in self.o_beta])
+        f = self.state
+        smp = ref.sample(tau) if ref is not None else {}
+        z = np.zeros(1)
+
+        def d(name, default):
+            if name in smp:
+                v, dv, ddv = smp[name]
+                return Desired(np.array([v]), np.array([dv]), np.array([ddv]))
+            return Desired(np.asarray(default, float), z, z)
+        T_f = None
+        if ref is not None:
+            T_f = ref.parameters.get("flight_time", ref.duration)
+        T1 = ref.parameters.get("T1", self.cfg.t1_fraction * T_f) if ref is not None else np.inf
+        if "H_flywheel" in smp:
+            outs, des = [self.o_Hfw], [d("H_flywheel", None)]
+        elif "phi_pitch" in smp and self.cfg.flight_pitch_output:
+            outs, des = [self.o_pitch], [d("phi_pitch", None)]
+        else:
+            outs, des = [self.o_Hfw], [Desired(np.array([self._momentum_transmission(smp, pitch)]), z, z)]
+        outs = outs + self.o_Lleg
+        des = des + [d("L", f["L"][k]) for k in range(2)]
+        if tau < T1:
+            if somersault and self.o_axis.weight > 0.0:          # see config.DEFAULT_GAINS["axis"]
+                outs.append(self.o_axis)
+                des.append(Desired(self._z2, self._z2, self._z2))
+            outs.append(self.o_j_pre)
+            des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
+        else:
+            bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
+            # the foot placement is a world leg angle for the pelvis at its final pitch theta_T; with
+            # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
+            off = np.zeros(3)
+            if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
+                if f.get("ref") is not ref:                  # final pitch of this flight reference
+                    f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
+                th_T = f["th_T"]
+                R = dyn.data.oMi[dyn.base_jid].rotation
+                w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
+                # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
+                # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
+                # against ~80 rad/s^2) and land with the feet far ahead
+                a_p = -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
+                off = np.array([pitch - th_T, w_p, a_p])
+            w_beta = self.cfg.somersault_beta_weight if somersault else self._beta_w0
+            for k in range(2):
+                b = -(bplus if bplus is not None else f["beta"][k][0])
+                self.o_beta[k].weight = w_beta
+                outs += [self.o_beta[k], self.o_toe[k]]
+                bd = d("beta_leg", [b])
+                des += [Desired(bd.value - off[0], bd.d_value - off[1], bd.dd_value - off[2]),
+                        d("toe_pitch", [0.0])]
+            outs.append(self.o_j_post)
+            des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
+        return outs, des
+
+    def _rest_inertia(self):
+        """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
+        dyn = self.dyn
+        pin.ccrba(dyn.model, dyn.data, dyn.q, dyn.v)            # data.Ig: centroidal composite inertia
+        return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
+
+    def _momentum_transmission(self, smp, pitch):
+        """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
+        with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
+        H_pitch = float(self.dyn.Ag[4] @ self.dyn.v)
+        th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
+        om_cl = om_des - self.cfg.k_theta * (pitch - th_des)
+        return H_pitch - om_cl * self._rest_inertia()
