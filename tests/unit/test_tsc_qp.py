@@ -130,7 +130,16 @@ def test_torque_limits_flywheel_torque():
     lb, ub = tl.bounds(w)
     lb2, ub2 = sim_lim.bounds(w)
     assert np.allclose(lb, lb2) and np.allclose(ub, ub2) and (lb[-1], ub[-1]) == (-260.0, 260.0)
-    assert Controller(export_mjcf(), flywheel_torque=260.0).limits.tau_max[-1] == 260.0
+    # the flywheel's torque limit comes with the robot description (its actuator's ctrlrange, the
+    # simulator's); a configured one must agree with it
+    from cassie_model.motor_limits import with_flywheel_torque
+    from cassie_model.robot_params import flywheel
+    fw260 = export_mjcf(with_flywheel_torque(flywheel("I"), 260.0))
+    assert Controller(fw260).limits.tau_max[-1] == 260.0
+    assert Controller(fw260, flywheel_torque=260.0).limits.tau_max[-1] == 260.0
+    assert Controller(export_mjcf()).limits.tau_max[-1] == 195.0
+    with pytest.raises(ValueError, match="differs from the robot description's 195"):
+        Controller(export_mjcf(), flywheel_torque=260.0)
     with pytest.raises(ValueError):
         TorqueLimits(flywheel_torque=-1.0)
 

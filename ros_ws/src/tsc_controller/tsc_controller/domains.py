@@ -80,7 +80,7 @@ class Controller:
         self.cfg = cfg
         self.dyn = Dynamics(mjcf, rigid_springs=cfg.rigid_springs, backend=cfg.backend)
         self.tsc = TSC(self.dyn, solver=cfg.solver, reg=cfg.reg, mu=cfg.mu, f_min=cfg.f_min, cop_margin=cfg.cop_margin)
-        self.limits = TorqueLimits(speed_scale=cfg.motor_speed_scale, flywheel_torque=cfg.flywheel_torque)
+        self.limits = TorqueLimits.for_description(mjcf, cfg.motor_speed_scale, cfg.flywheel_torque)
         self.model_info = StateConverter(self.dyn)      # for state.state_from_ros(controller.model_info, js, odom)
         self.ground = GroundTargets(self.dyn, cfg, _ground_outputs(cfg.gains))
         self.standing = Standing(self.ground, cfg)

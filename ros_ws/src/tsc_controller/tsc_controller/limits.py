@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import numpy as np
+from cassie_model.description import motor_torque_limits
 from cassie_model.motor_limits import MotorLimits
 
 from . import _native
@@ -56,6 +57,20 @@ class TorqueLimits:
         self.limits = limits if limits is not None else MotorLimits.from_flywheel("I", speed_scale, flywheel_torque)
         self.tau_max = np.asarray(self.limits.torque_limit, float)
         self._inv_w0 = np.asarray(self.limits.inv_no_load_speed, float)
+
+    @classmethod
+    def for_description(cls, mjcf: str, speed_scale: float = 1.0, flywheel_torque: float | None = None):
+        """The limits of the robot an MJCF describes: its flywheel motor's torque limit from the
+        description (the flywheel actuator's ctrlrange, the simulator's); a ``flywheel_torque`` given
+        as well must equal it (ValueError otherwise: the controller would plan torques the plant
+        clips, or leave torque unused)."""
+        described = motor_torque_limits(mjcf).get("flywheel")
+        if not flywheel_torque:
+            flywheel_torque = described
+        elif described is not None and abs(flywheel_torque - described) > 1e-9 * described:
+            raise ValueError(f"flywheel torque {flywheel_torque:g} N*m differs from the robot description's "
+                             f"{described:g} N*m (its flywheel actuator's ctrlrange)")
+        return cls(speed_scale=speed_scale, flywheel_torque=flywheel_torque)
 
     def bounds(self, motor_velocities):
         """(u_lb, u_ub): the bound a motor pushes against (the sign of its velocity) is
