@@ -33,6 +33,14 @@ DOMAIN_NAMES = {0: "standing", 1: "jumping", 2: "flight", 3: "landing"}
 DOMAIN_COLORS = {0: "#ffffff", 1: "#fff3d6", 2: "#dcecff", 3: "#e3f5e1"}
 
 
+
+def _save(fig, path, rect=None):
+    """Lay the figure out (``rect``: the area left for the axes), write it at 110 dpi, close it."""
+    fig.tight_layout(**({} if rect is None else {"rect": rect}))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
 def plot_bag(bag: str | Path, out_dir: str | Path, data: BagData | None = None) -> list[Path]:
     data = data or load_bag(bag, exclude=NOT_SUMMARIZED)
     out = Path(out_dir)
@@ -213,10 +221,7 @@ def _fig6(data, path):
         ax.grid(alpha=0.3)
     handles = [plt.Rectangle((0, 0), 1, 1, color=DOMAIN_COLORS[d]) for d in (1, 2, 3)]
     fig.legend(handles, [DOMAIN_NAMES[d] for d in (1, 2, 3)], loc="upper center", ncol=3, fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1, 0.98))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, rect=(0, 0, 1, 0.98))
 
 
 def _fig6_normal_force(axs, data, ce):
@@ -289,10 +294,7 @@ def _pelvis(data, path):
     axs[3].set_xlabel(f"time (s, {src})")
     for ax in axs:
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _torques(data, path):
@@ -307,10 +309,7 @@ def _torques(data, path):
     ax.set_ylabel("commanded torque (N m)")
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _tick(data, path):
@@ -329,10 +328,7 @@ def _tick(data, path):
     ax.set_xlabel("controller tick (µs, MotorCommand.compute_time_us)")
     ax.set_ylabel("ticks")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -415,7 +411,4 @@ def _scene(data, path):
         ax.grid(alpha=0.3)
     np.atleast_1d(axs)[0].set_ylabel("z (m)")
     np.atleast_1d(axs)[0].legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)

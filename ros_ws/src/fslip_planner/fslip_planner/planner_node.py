@@ -146,6 +146,7 @@ class PlannerNode:
         n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
         # the simulated robot's description: a flywheel other than the one planned for is refused
         self.sim_mjcf = None
+        self._own_flywheel = flywheel_inertial(export_mjcf(self.flywheel))
         n.create_subscription(String, '/robot_description_mjcf', self._on_description, LATCHED_QOS)
         # The newest /clock is read on demand from a node no executor spins (no 2 kHz callbacks).
         self._clock_node = rclpy.create_node('planner_clock')
@@ -252,7 +253,7 @@ class PlannerNode:
             sim = flywheel_inertial(self.sim_mjcf)
         except ValueError as e:
             return f'robot_mismatch: /robot_description_mjcf unreadable: {e}'
-        own = flywheel_inertial(export_mjcf(self.flywheel))
+        own = self._own_flywheel
         if sim is not None and own is not None and np.allclose(sim[0], own[0]) and np.allclose(sim[1], own[1]):
             return None
         fmt = (lambda f: 'none' if f is None else f'{f[0]:g} kg, pitch inertia {f[1][1]:g} kg m^2')

@@ -97,7 +97,7 @@ class Controller:
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
-        self._heading = None             # (heading, x, y) of the pelvis at the jump's start (_heading_frame)
+        self._heading = None             # the pelvis's heading and position at the jump's start (_heading_frame)
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
         #: JUMPING references not started, (plan id, its start time, t when it was dropped): one that
         #: came after its start + max_late, or while the robot was not standing until then
@@ -186,17 +186,17 @@ class Controller:
         b = self.dyn.model.idx_qs[self.dyn.base_jid]
         x, y, z, w = q[b + 3:b + 7]
         if self._heading is None:
-            self._heading = (math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z)),
-                             float(q[b]), float(q[b + 1]))
-            if self._heading[0] != 0.0:
-                self.ground.turn(*self._heading[:1], self._heading[1:])
-        psi, x0, y0 = self._heading
+            psi = math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z))
+            # (heading, pivot x, y, cos and -sin of half of it and of it)
+            self._heading = (psi, float(q[b]), float(q[b + 1]), math.cos(0.5 * psi), -math.sin(0.5 * psi),
+                             math.cos(psi), -math.sin(psi))
+            if psi != 0.0:
+                self.ground.turn(psi, self._heading[1:3])
+        psi, x0, y0, c, s, c2, s2 = self._heading
         if psi == 0.0:
             return q
-        c, s = math.cos(0.5 * psi), -math.sin(0.5 * psi)
         q = np.array(q, float)
         q[b + 3:b + 7] = (c * x - s * y, c * y + s * x, c * z + s * w, c * w - s * z)
-        c2, s2 = math.cos(psi), -math.sin(psi)
         dx, dy = q[b] - x0, q[b + 1] - y0
         q[b:b + 2] = (x0 + c2 * dx - s2 * dy, y0 + s2 * dx + c2 * dy)
         return q
