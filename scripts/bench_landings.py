@@ -12,7 +12,8 @@ arrives while the robot stands), so the count is the offline estimate of a graph
         [--distance 0] [--platform 0 | --ground-offset 0] [--states]
 
 (defaults: the somersault robot of the README and the 15 start times of the README's tally).  Each row also gives
-the planner's landing re-solve at touch-down (wall ms, IPOPT iterations, which attempt answered).
+the planner's landing re-solve at touch-down (wall ms, IPOPT iterations, which attempt answered) and
+whether the controller's own landing replaced the tracked plan (a rebound, or no plan).
 """
 from __future__ import annotations
 
@@ -67,6 +68,8 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
                         "iterations": int(ref.figures.get("iterations", -1)),
                         "fallback": int(ref.figures.get("fallback", -1))}
                        for _, ref in r["references"] if ref.domain == 3]
+    # the landings the controller's own landing did instead of the tracked plan (reason each)
+    out["own_landing"] = [why for _, why in r["ctl"].landing_fallbacks]
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     out["landed"] = outcome(r, kind) == "landed"
     return out
@@ -125,15 +128,16 @@ def main() -> int:
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
           f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
     print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg "
-          "| landing re-solve ms (iterations, attempt) |")
+          "| landing re-solve ms (iterations, attempt) | own landing |")
     print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------"
-          "|---|")
+          "|---|---|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731
     for r in rows:
         rs = ", ".join(f"{v['ms']:.1f} ({v['iterations']}, {v['fallback']})" for v in r["resolves"]) or "-"
         print(f"| {r['kind']} | {start_cell(r['start'])} | {'yes' if r['landed'] else 'no'} | "
               f"{'yes' if r['at_rest'] else 'no'} | {f(r['fell_at'], 3)} | "
-              f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} | {rs} |")
+              f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} | {rs} | "
+              f"{', '.join(r['own_landing']) or '-'} |")
     if a.states:
         print()
         print("| flip | start s | lift-off COM ahead of feet m (plan) | ẋ m/s (plan) | ż m/s (plan) | H kg m²/s (plan) "
@@ -155,6 +159,9 @@ def main() -> int:
         print(f"landing re-solve at the first touch-down: median {statistics.median(ms):.1f} ms, max {max(ms):.1f} ms; "
               f"IPOPT iterations median {statistics.median(its):.0f}, max {max(its)}; answered by a fallback "
               f"(cold / momentum free / blend) in {sum(v['fallback'] > 0 for v in first)} of {len(first)}")
+    own = [r for r in rows if r["own_landing"]]
+    print(f"own landing (the controller's fallback) in {len(own)} of {len(rows)} runs"
+          + (f": {', '.join(sorted({w for r in own for w in r['own_landing']}))}" if own else ""))
     print(json.dumps({k: sum(r["landed"] for r in rows if r["kind"] == k) for k in a.kinds}))
     return 0
 

@@ -180,15 +180,20 @@ def test_landing_always_answers_even_from_a_failed_flip():
     lo = s.result.lift_off
     s.flight_reference(P.MeasuredState(1.0, np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.0, 1.6]),
                                        lo["momentum"], lo["beta"], 0.0))
-    # the run that exposed it: touch-down with ẋ = −0.75 m/s, ż ≈ 0 and H = −118 kg·m²/s
-    lr = s.landing_reference(P.MeasuredState(1.3, np.array([0.0, 0.0, 0.9]), np.array([-0.75, 0.0, -0.01]),
-                                             -118.1, 0.3, -5.0))
-    assert lr is not None and lr.domain == 3 and lr.figures["fallback"] >= 1
-    H, _, _ = lr.column("H_pitch")
-    assert H[0] == pytest.approx(-118.1)
-    L, _, _ = lr.column("L")
-    assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6)
-    assert np.all(np.isfinite(lr.value)) and np.all(np.isfinite(lr.dd_value))
+    # the run that exposed it: touch-down with ẋ = −0.75 m/s, ż ≈ 0 and H = −118 kg·m²/s (planned
+    # within the 2 s landing), and a state no landing of this robot can bring to rest (H = −400: the
+    # answer comes from a fallback)
+    for H0, fallback in ((-118.1, None), (-400.0, True)):
+        lr = s.landing_reference(P.MeasuredState(1.3, np.array([0.0, 0.0, 0.9]), np.array([-0.75, 0.0, -0.01]),
+                                                 H0, 0.3, -5.0))
+        assert lr is not None and lr.domain == 3
+        if fallback:
+            assert lr.figures["fallback"] >= 1
+        H, _, _ = lr.column("H_pitch")
+        assert H[0] == pytest.approx(H0)
+        L, _, _ = lr.column("L")
+        assert L[-1] == pytest.approx(s.robot.L0, abs=1e-6)
+        assert np.all(np.isfinite(lr.value)) and np.all(np.isfinite(lr.dd_value))
 
 
 def test_premature_liftoff_aborts_the_flip():

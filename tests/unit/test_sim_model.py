@@ -234,12 +234,12 @@ def test_motor_limits():
     assert np.allclose(ub, lim.torque_limit) and np.allclose(lb, -lim.torque_limit)
     w0 = lim.no_load_speed
     assert w0[3] == pytest.approx(1300 * 2 * math.pi / 60 / 16)     # knee: 81.25 rpm joint side
-    w = np.where(np.isfinite(w0), 0.5 * w0, 1e3)
+    w = np.where(np.isfinite(w0), 0.75 * w0, 1e3)          # published curve: half the torque at 3/4 w0
     lb, ub = torque_bounds(w)
-    assert np.allclose(ub[:10], 0.5 * lim.torque_limit[:10]) and np.allclose(lb[:10], -lim.torque_limit[:10])
+    assert np.allclose(ub[:10], 0.5 * lim.torque_limit[:10]) and np.allclose(lb[:10], -0.5 * lim.torque_limit[:10])
     assert ub[10] == 195.0 and lb[10] == -195.0                          # flywheel: constant
-    lb, ub = torque_bounds(-2 * np.where(np.isfinite(w0), w0, 1.0))
-    assert np.allclose(lb[:10], 0) and np.allclose(ub[:10], lim.torque_limit[:10])
+    lb, ub = torque_bounds(-2 * np.where(np.isfinite(w0), w0, 1.0))     # beyond no-load: none, either sign
+    assert np.allclose(lb[:10], 0) and np.allclose(ub[:10], 0)
     capped = MotorLimits.from_flywheel(P.Flywheel(0.1074, 9.54, max_speed_rpm=1645))
     assert capped.bounds(np.full(11, 200.0))[1][10] == 0.0
 

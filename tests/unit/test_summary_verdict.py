@@ -162,3 +162,17 @@ def test_plots_from_synthetic_bag(tmp_path):
     write_flip_bag(tmp_path / "bag", rotation_deg=-360.0)
     files = plot_bag(tmp_path / "bag", tmp_path)
     assert files and all(Path(f).stat().st_size > 1000 for f in files)
+
+
+def test_landing_fallbacks_are_read_from_the_controller_log(tmp_path):
+    """summary.json's landing_fallbacks: tsc_node's 'landing fallback' warnings, in order; none in a
+    log without them; None without a log."""
+    from flip_tools.cli.results import landing_fallbacks
+    log = tmp_path / "tsc.log"
+    log.write_text("[INFO] [tsc_node]: reference: plan 1 domain 3\n"
+                   "[WARN] [1.2] [tsc_node]: landing fallback: own landing from t=2.0530 s (rebound)\n"
+                   "[WARN] [1.9] [tsc_node]: landing fallback: own landing from t=4.1000 s (no landing plan)\n")
+    assert landing_fallbacks(log) == [{"t": 2.053, "reason": "rebound"}, {"t": 4.1, "reason": "no landing plan"}]
+    log.write_text("[INFO] [tsc_node]: reference: plan 1 domain 3\n")
+    assert landing_fallbacks(log) == []
+    assert landing_fallbacks(tmp_path / "missing.log") is None

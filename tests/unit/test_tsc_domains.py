@@ -363,3 +363,31 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
         ctl.standing.H_weight()
         assert o.weight == pytest.approx(w0 * f)
     ctl.ground.foot_anchor = anchors
+
+
+def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing():
+    """LANDING with the planner's landing reference: a LIFT_OFF (the feet left the ground under the
+    plan) drops it for the controller's own landing, says why (``landing_fallback``), and keeps the
+    re-solve of the next touch-down as ``landing_plan`` only; the next flight clears it."""
+    sim, ctl = Simulator(), Controller(export_mjcf())
+    sc = StateConverter(ctl.dyn)
+    ts = np.linspace(0.0, 1.0, 11)
+    land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)
+
+    def tick():
+        q, v = sc.from_simulator(sim)
+        ctl.compute(q, v, sim.time)
+    tick()
+    ctl._enter(Domain.LANDING, sim.time)
+    ctl.set_reference(land)
+    tick()
+    assert ctl.refs.get(Domain.LANDING) is land and ctl.landing_fallback is None
+    ctl.on_contact_event(0, sim.time)              # LIFT_OFF while the plan is tracked
+    tick()
+    assert ctl.domain == Domain.LANDING and Domain.LANDING not in ctl.refs
+    assert ctl.landing_fallback == "rebound" and [why for _, why in ctl.landing_fallbacks] == ["rebound"]
+    again = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=sim.time)
+    ctl.set_reference(again)                       # the re-solve at the next touch-down
+    assert Domain.LANDING not in ctl.refs and ctl.landing_plan is again
+    ctl._enter(Domain.FLIGHT, sim.time)
+    assert ctl.landing_fallback is None

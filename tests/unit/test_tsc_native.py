@@ -305,7 +305,7 @@ class _Twin:
 @pytest.mark.parametrize("flip", ["C", "D"])
 def test_compiled_targets_equal_python_targets(flip):
     """ControllerConfig.compiled_targets (the ground domains' targets in C++, _native.GroundTargets)
-    against its Python reference over a whole offline flip of the somersault robot: the same torques
+    against its Python reference over an offline flip of the somersault robot: the same torques
     and STANDING momentum weights to the bit at every tick, through every domain, with the landing's
     leg catch re-anchored on the sink rate (flip C's 3.8 m/s touch-down), with feet off the ground
     (flip D's rebounds), and with the COM past the feet in STANDING (the in-place frontflip from
@@ -323,13 +323,17 @@ def test_compiled_targets_equal_python_targets(flip):
     sim = Simulator(scenario=scenario, **robot)
     mj = export_mjcf(sim.flywheel)
     # 1 N least normal force everywhere (f_min_domains empty): with the default 25 N in JUMPING and
-    # LANDING these runs no longer re-anchor the catch or lift a foot, and the branches go untested
-    cfg = dict(f_min_domains={})
+    # LANDING these runs no longer re-anchor the catch or lift a foot, and the branches go untested;
+    # the controller's own landing (the fallback when no landing plan arrives), whose targets these are
+    cfg = dict(f_min_domains={}, track_landing_reference=False)
     twin = _Twin(Controller(mj, **robot, **cfg), Controller(mj, compiled_targets=False, **robot, **cfg))
     assert twin.a.ground.compiled is not None and twin.b.ground.compiled is None
     # the jump anchored at the initial COM (an input here): the run whose landing re-anchors the catch
     r = of.run("frontflip", seconds=seconds, start=start, sim=sim, controller=twin, x_start=float(sim.com_position()[0]),
                **robot, **request)
-    assert r["fell"] is None and twin.ticks == round(seconds / 0.0005) + 1
+    # (under the published motor curve with 1 N these runs fall after their landings, C at 3.5 s, D
+    # at 3.1 s: the twins are compared on every tick up to the fall, every domain and branch included)
+    end = seconds if r["fell"] is None else r["fell"]
+    assert abs(twin.ticks - end / 0.0005) <= 1.0 and end > 3.0
     assert {("domain", d) for d in range(4)} <= twin.seen
     assert seen in twin.seen

@@ -33,6 +33,7 @@ def finish(out: Path, graph: Graph | None, report: dict, extra: dict, kind: str 
                 f"messages, sim time {summary.get('sim_duration_s')} s{ran} "
                 f"({kept['bytes_dropped']} bytes of an unfinished chunk left out); index and metadata.yaml written")
     summary["processes"] = report
+    summary["landing_fallbacks"] = landing_fallbacks(out / "logs" / "tsc.log")
     summary.update(extra)   # a rejected request: outcome "rejected" whatever the bag shows
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     if plots and bag.exists() and (bag / "metadata.yaml").exists():
@@ -46,11 +47,23 @@ def finish(out: Path, graph: Graph | None, report: dict, extra: dict, kind: str 
     return summary
 
 
+def landing_fallbacks(log_file: Path) -> list | None:
+    """The landings the controller's own landing did instead of the planner's tracked landing plan,
+    from tsc_node's log: [{"t": s, "reason": "rebound" | "no landing plan"}]; None without the log."""
+    import re
+    if not log_file.is_file():
+        return None
+    pat = re.compile(r"landing fallback: own landing from t=([-0-9.]+) s \(([^)]*)\)")
+    return [{"t": float(m.group(1)), "reason": m.group(2)}
+            for m in pat.finditer(log_file.read_text(errors="replace"))]
+
+
 def print_summary(summary: dict, keys=None) -> None:
     keys = keys or ["outcome", "verdict_notes", "net_rotation_deg", "apex_height_m", "forward_distance_m",
                     "flight_time_s", "touchdown_state", "touchdown_com_ahead_of_feet_m", "final_tilt_deg",
                     "final_height_above_ground_m", "at_rest",
                     "peak_flywheel_rpm", "flight_peak_flywheel_rpm", "landing_peak_flywheel_rpm", "tracking",
+                    "landing_fallbacks",
                     "tsc_tick_us", "sim_duration_s", "wall_time_s", "real_time_factor"]
     for k in keys:
         if k in summary:

@@ -1,15 +1,17 @@
-"""Motor limits as on the robot: joint-side torque saturation and a linear torque–speed envelope
-(the paper's u_lb(q̇) ≤ u ≤ u_ub(q̇), eq. (power) / the Torque Limit row of the TSC QP).
+"""Motor limits as on the robot: joint-side torque saturation and Cassie's published torque–speed
+envelope (the paper's u_lb(q̇) ≤ u ≤ u_ub(q̇), eq. (power) / the Torque Limit row of the TSC QP).
 
-Envelope per motor, joint side (τ_max = motor limit · gear, ω₀ = no-load rpm · 2π/60 / gear):
-motoring (τ·ω > 0) the available torque drops linearly from τ_max at ω = 0 to 0 at |ω| = ω₀;
-braking (τ·ω ≤ 0) the full τ_max is available.  The flywheel has a constant 195 N·m limit
-(paper §V; ``flywheel_torque`` replaces it) and, optionally, a maximum speed (no-load speed = that speed).
-Order = contract motor order (architecture.md).
+Envelope per motor, joint side (τ_max = motor limit · gear, ω₀ = no-load rpm · 2π/60 / gear), as
+Cassie's own simulators apply it (cassie-mujoco-sim ``motor()``, Agility's Gazebo plugin
+``CassiePlugin::setMotor``): |τ| ≤ min(τ_max, 2 τ_max (1 − |ω|/ω₀)), clamped at 0, whatever the
+sign of the torque — full torque up to half the no-load speed, none beyond it, driving or braking.
+The flywheel has a constant 195 N·m limit (paper §V; ``flywheel_torque`` replaces it) and, optionally,
+a maximum speed (no-load speed = that speed).  Order = contract motor order (architecture.md).
 
-This is the envelope's one Python form, the reference of its compiled copies: the simulator's torque
-clip (cassie_flip_sim native/step.cpp, against ``Simulator(backend="python")``) and the controller's
-bounds (tsc_controller native/limits.cpp, ``TorqueLimits``), each tested bit for bit against it.
+:func:`available_fraction` is the envelope's one Python form; ``native/motor_envelope.h`` its one
+C++ form, which the simulator's torque clip (cassie_flip_sim native/step.cpp) and the controller's
+bounds (tsc_controller native/limits.cpp) include, each tested bit for bit against this module.  The
+planner's leg-force rows use :func:`planning_fraction`, an inner bound of it.
 """
 from __future__ import annotations
 
@@ -21,6 +23,29 @@ from typing import Optional, Tuple
 import numpy as np
 
 from . import robot_params as P
+
+
+def available_fraction(speed_ratio):
+    """Share of a motor's torque limit available at |ω|/ω₀ = ``speed_ratio`` (either sign of the
+    torque): min(1, 2 (1 − |ω|/ω₀)) clamped at 0 — Cassie's published curve.  numpy arrays; NaN
+    stays NaN."""
+    return np.minimum(np.maximum(2.0 * (1.0 - np.abs(speed_ratio)), 0.0), 1.0)
+
+
+def planning_rows(speed_ratio):
+    """The planner's leg-force rows (fslip_planner.jumping, paper §III-B actuation constraints):
+    F ≤ F_max · each of (1 − r, 2 (1 + r)), besides F ≤ F_max, at the signed speed ratio r = ω/ω₀
+    (r > 0: the motor drives the push).  Driving, the chord 1 − r of :func:`available_fraction` from
+    stall to no-load: it leaves the controller the rest of the envelope to track the plan with.
+    Braking, the envelope itself.  No min/max: CasADi expressions work as well as numbers."""
+    return 1.0 - speed_ratio, 2.0 * (1.0 + speed_ratio)
+
+
+def planning_fraction(speed_ratio):
+    """min(1, :func:`planning_rows`): the share of the torque limit the planner's trajectories use
+    at the signed speed ratio; never more than :func:`available_fraction` of its magnitude."""
+    a, b = planning_rows(np.asarray(speed_ratio, float))
+    return np.minimum(np.minimum(a, b), 1.0)
 
 
 @dataclass(frozen=True)
@@ -57,11 +82,8 @@ class MotorLimits:
     def bounds(self, motor_velocities) -> Tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of the joint-side torques at the given joint-side motor velocities (rad/s)."""
         w = np.asarray(motor_velocities, float)
-        # 1 - |w|/ω₀ <= 1 already; np.maximum, not np.clip (3x the cost for 11 numbers)
-        avail = self.torque_limit * np.maximum(1.0 - np.abs(w) * self._inv_w0, 0.0)
-        ub = np.where(w > 0, avail, self.torque_limit)
-        lb = np.where(w < 0, -avail, -self.torque_limit)
-        return lb, ub
+        avail = self.torque_limit * available_fraction(w * self._inv_w0)
+        return -avail, avail
 
     def clip(self, u, motor_velocities) -> np.ndarray:
         """Commanded torques saturated to the envelope."""

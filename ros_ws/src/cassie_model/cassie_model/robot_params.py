@@ -331,8 +331,8 @@ class Robot:
 #: gives the evidence for each).
 ROBOTS = {r.name: r for r in (
     Robot("cassie", about="Cassie as published (Agility's motors: gear, torque limit, no-load speed) "
-                          "with flywheel I of Table I at 195 N*m: the paper's robot (torque-speed envelope: "
-                          "motor_limits, linear from rest while driving; docs/robots.md)"),
+                          "with flywheel I of Table I at 195 N*m: the paper's robot (Cassie's published torque-speed "
+                          "curve, as its simulators apply it; docs/robots.md)"),
     Robot("cassie-legs3-fw260", motor_speed_scale=3.0, flywheel_torque=260.0,
           about="design study: leg motors' no-load speeds x3 and a 260 N*m flywheel motor (flywheel I)"),
 )}

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from cassie_model.motor_limits import planning_fraction
 
 from . import fslip as F
 
@@ -66,7 +67,7 @@ def max_vertical_jump(p: F.FSLIPParams, dt=5e-4):
     while L < p.L_max:
         Fm = float(p.F_max(L))
         if math.isfinite(p.knee_no_load_speed):
-            Fm *= min(1.0, max(0.0, F.envelope_factor(float(p.dqknee_dL(L)) * v / p.knee_no_load_speed)))
+            Fm *= max(0.0, float(planning_fraction(float(p.dqknee_dL(L)) * v / p.knee_no_load_speed)))
         a = Fm / p.m - p.g
         v += a * dt
         L += v * dt
@@ -111,7 +112,8 @@ def _limit_names():
     from .jumping import PATH_ROWS
     limits = ("leg length range", "leg length range", "unilateral leg force", "unilateral ground contact",
               "friction cone", "friction cone", "ZMP inside the foot", "ZMP inside the foot",
-              "flywheel torque", "flywheel torque", "knee torque", "knee torque–speed envelope")
+              "flywheel torque", "flywheel torque", "knee torque", "knee torque–speed envelope",
+              "knee torque–speed envelope")
     return dict(zip(PATH_ROWS, limits))
 
 

@@ -76,14 +76,6 @@ class FSLIPParams:
         return self.reg("F_max", L) / (2.0 * self.reg.info.get("knee_torque_limit", 195.2))
 
 
-def envelope_factor(speed_ratio):
-    """The share of the stall torque a leg motor gives at |ω|/ω₀ = ``speed_ratio`` while it drives:
-    1 − |ω|/ω₀, the simulator's envelope (``cassie_model.motor_limits``; the leg force row is
-    F^s ≤ F_max · this).  Cassie's published curve, 2 (1 − |ω|/ω₀) capped at 1, waits for the
-    controller to be tuned for it (branch published-envelope)."""
-    return 1.0 - speed_ratio
-
-
 def leg_geometry(X):
     """(r, sinβ, cosβ, ṙ) of the state X = [x, z, ẋ, ż, H]."""
     x, z, xd, zd = X[0], X[1], X[2], X[3]

@@ -5,9 +5,9 @@ Decision variables: X = [x, z, ẋ, ż, H] (5×N), U = [F^s, τ, u] (3×N), T (s
 Constraints (every knot): trapezoidal dynamics; start standing at rest on the nominal leg length
 (F^s = m g, τ = u = 0); L_min ≤ L ≤ L_max (L = r + F^s/K, computed); F^s ≥ 0; F_z ≥ 0; friction
 cone |F_x| ≤ μ F_z; ZMP |u| ≤ F_z l/2; flywheel |τ| ≤ τ_max (see below); leg force
-F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope (the
-simulator's, :func:`fslip_planner.fslip.envelope_factor`),
-F^s ≤ F_max(L) (1 − |dq_knee/dL| ṙ / ω₀) (ṙ ≥ L̇ while the spring unloads: conservative);
+F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope
+(:func:`cassie_model.motor_limits.planning_rows` at r = |dq_knee/dL| ṙ / ω₀; ṙ ≥ L̇ while the spring
+unloads: conservative), F^s ≤ F_max(L) (1 − r) pushing and F^s ≤ 2 F_max(L) (1 + r) compressing;
 lift-off at the last knot: F_z = F_x = u = 0 (⇔ F^s = τ = u = 0); before that the feet stay loaded,
 F_z ≥ ½ m g ramping to 0 over the last 3 knots (the robot's contact detector must not see an early
 lift-off, e.g. in a free-fall crouch).
@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
+from cassie_model.motor_limits import planning_rows
 
 from . import fslip as F
 
@@ -77,7 +78,7 @@ def row_scales(p: F.FSLIPParams):
     """Units of the path-constraint rows (m, N, N·m): each row is divided by its unit so that IPOPT
     sees O(1) constraint values and multipliers."""
     mg = p.m * p.g
-    return np.array([0.1, 0.1, mg, mg, mg, mg, 10.0, 10.0, 100.0, 100.0, mg, mg])
+    return np.array([0.1, 0.1, mg, mg, mg, mg, 10.0, 10.0, 100.0, 100.0, mg, mg, mg])
 
 
 def knot_functions(p: F.FSLIPParams, N: int):
@@ -98,7 +99,7 @@ def knot_functions(p: F.FSLIPParams, N: int):
             p.tau_max - u[1], p.tau_max + u[1], Fmax - u[0]]
     if math.isfinite(p.knee_no_load_speed):
         rdot = F.leg_geometry(x)[3]
-        rows.append(Fmax * F.envelope_factor(p.dqknee_dL(L) * rdot / p.knee_no_load_speed) - u[0])
+        rows += [Fmax * f - u[0] for f in planning_rows(p.dqknee_dL(L) * rdot / p.knee_no_load_speed)]
     sc = row_scales(p)[:len(rows)]
     f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
     fl = ca.Function("L", [x, u], [L]).map(N)
@@ -111,7 +112,8 @@ def knot_functions(p: F.FSLIPParams, N: int):
 PATH_ROWS = ("leg length >= L_min", "leg length <= L_max", "leg force >= 0", "F_z >= 0",
              "friction cone (F_x <= mu F_z)", "friction cone (F_x >= -mu F_z)", "ZMP (u <= F_z l/2)",
              "ZMP (u >= -F_z l/2)", "flywheel torque <= tau_max", "flywheel torque >= -tau_max",
-             "leg force limit (knee torque)", "knee torque-speed envelope")
+             "leg force limit (knee torque)", "knee torque-speed envelope",
+             "knee torque-speed envelope (compressing)")
 #: the rows that only involve the leg length (the rest constrain the controls)
 LEG_ROWS = 2
 #: state units (x, z in m; ẋ, ż in m/s; H in kg·m²/s): the dynamics defects are divided by them

@@ -23,6 +23,13 @@ from . import fslip as F
 from . import jumping as Jm
 
 ALPHA = 1e-1
+# Landing duration bounds (s) and knots.  A somersault lands with up to ~50 kg·m²/s of pitch momentum,
+# which leaves through the foot torque, |u| ≤ F_z l/2 ≈ 34 N·m standing (ZMP): at least ~1.5 s.  With
+# at most 1.2 s the optimum sat on the bound and removed it with flywheel torque τ, whose reaction on
+# the leg (F_t = (τ + u)/r) swung the point mass 0.25 m forward and back; the robot tracking that
+# bounced off after a backflip (docs/measurements.md, Landing plan tracked).  40 knots keep ΔT ≤ 0.05 s.
+T_BOUNDS = (0.4, 2.0)
+N_KNOTS = 40
 WARM_OPTS = dict(Jm.IPOPT_OPTS)
 WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-6,
                   "ipopt.warm_start_mult_bound_push": 1e-6, "ipopt.mu_init": 1e-4,
@@ -35,7 +42,7 @@ COLD_OPTS.update({"ipopt.max_iter": 300})
 class LandingProblem:
     """Landing Opti built once per (params, L_stand, N); :meth:`solve` from a post-impact state."""
 
-    def __init__(self, p: F.FSLIPParams, L_stand: float, N: int = 30, T_bounds=(0.4, 1.2),
+    def __init__(self, p: F.FSLIPParams, L_stand: float, N: int = N_KNOTS, T_bounds=T_BOUNDS,
                  free_momentum: bool = False):
         import casadi as ca
         self.p, self.N = p, N

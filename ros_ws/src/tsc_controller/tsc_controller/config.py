@@ -145,11 +145,10 @@ class ControllerConfig:
     # placement outranks the pelvis pitch (weight 10), so the QP does not swing the legs to help a
     # saturated flywheel turn the body.  Not in a hop (docs/tuning.md)
     somersault_beta_weight: float = 100.0
-    # LANDING after a somersault: track the planner's landing re-solve (paper §III-C) or land with the
-    # controller's own profiles (leg catch, bounded momentum removal).  Off: the re-solve's momentum
-    # swings through zero (its flywheel torque also pushes the point mass) and tracking it fell.  After
-    # a hop the re-solve is tracked either way (docs/tuning.md)
-    track_landing_reference: bool = False
+    # LANDING after a somersault: track the planner's landing re-solve (paper §III-C), or (False) land
+    # with the controller's own profiles (leg catch, bounded momentum removal), which are also what runs
+    # when no landing reference arrives.  After a hop the re-solve is tracked either way (docs/tuning.md)
+    track_landing_reference: bool = True
     # m/s: the landing's leg catch re-anchors on the body's sink rate (GroundTargets._leg_catch) when the
     # profile shortens the leg faster than the body sinks by more than this
     catch_slack: float = 0.1

@@ -90,6 +90,13 @@ class Controller:
         self.refs: dict[Domain, SampledReference] = {}
         self.landing_plan = None
         self._somersault = False
+        #: why the own landing replaced the tracked landing plan in the landing under way (None: it did
+        #: not): "rebound", the feet left the ground while the plan was tracked
+        self.landing_fallback: str | None = None
+        #: every landing the own landing did (t, reason): from a rebound's LIFT_OFF, or from the
+        #: touch-down of a landing no plan was tracked in ("no landing plan")
+        self.landing_fallbacks: list[tuple[float, str]] = []
+        self._landing_tracked = False
         self.domain = Domain.STANDING
         self.t_enter = None
         self._pending_event = None
@@ -111,7 +118,8 @@ class Controller:
         if ref.domain == Domain.FLIGHT and ref.has("phi_pitch") and len(ref.t):
             col = ref.names.index("phi_pitch")
             self._somersault = abs(ref.value[-1, col] - ref.value[0, col]) > math.pi / 2
-        if ref.domain == Domain.LANDING and self._somersault and not self.cfg.track_landing_reference:
+        if ref.domain == Domain.LANDING and (self.landing_fallback is not None or
+                                             (self._somersault and not self.cfg.track_landing_reference)):
             self.landing_plan = ref
             return
         self.refs[ref.domain] = ref
@@ -127,6 +135,12 @@ class Controller:
 
     # -------------------------------------------------------------- domain logic
     def _enter(self, domain, t):
+        if domain in (Domain.FLIGHT, Domain.STANDING):
+            self.landing_fallback = None
+        if domain == Domain.FLIGHT:
+            self.landing_plan = None
+        if domain == Domain.LANDING:
+            self._landing_tracked = False
         self.domain = Domain(domain)
         self.t_enter = t
         self._domain_object(domain).enter()
@@ -161,7 +175,19 @@ class Controller:
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
+            if ev is not None and ev[0] == LIFT_OFF and self.refs.get(Domain.LANDING) is not None:
+                # the feet left the ground under the tracked plan: it cannot be followed from here (its
+                # re-solve at the next touch-down starts the same way); the own landing, from now
+                self.refs.pop(Domain.LANDING, None)
+                self.landing_fallback = "rebound"
+                self.landing_fallbacks.append((ev[1], "rebound"))
+                self.ground.reanchor()
+            if self.refs.get(Domain.LANDING) is not None:
+                self._landing_tracked = True
             if self.landing.done(t, self.refs.get(Domain.LANDING)):
+                if not self._landing_tracked and self.landing_fallback is None:
+                    why = "no landing plan" if self.landing_plan is None else "track_landing_reference off"
+                    self.landing_fallbacks.append((self.t_enter, why))
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.STANDING, t)

@@ -49,8 +49,9 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_ma
 
 class TorqueLimits:
     """u_lb(qdot), u_ub(qdot) of the 11 motors (contract order): the envelope of ``limits`` (a
-    :class:`~cassie_model.motor_limits.MotorLimits`, the simulator's), compiled: motoring, the torque
-    falls linearly from tau_max at rest to 0 at the no-load speed; braking, tau_max."""
+    :class:`~cassie_model.motor_limits.MotorLimits`, the simulator's), compiled from the same
+    definition (cassie_model native/motor_envelope.h): Cassie's published curve, full torque up to half
+    the no-load speed, none at it, whatever the torque's sign."""
 
     def __init__(self, limits: MotorLimits | None = None, speed_scale: float = 1.0,
                  flywheel_torque: float | None = None):

@@ -114,9 +114,13 @@ class TscNode:
             self.cpu0 = (time.process_time(), time.thread_time())
         q, v = self._state(js_buf, odom_buf)
         t0 = time.perf_counter()
-        n_dropped = len(self.controller.dropped)
+        n_dropped, n_own = len(self.controller.dropped), len(self.controller.landing_fallbacks)
         u, _ = self.controller.compute(q, v, k_ns * 1e-9, details=False)
         dt_us = (time.perf_counter() - t0) * 1e6
+        if len(self.controller.landing_fallbacks) > n_own:
+            t, why = self.controller.landing_fallbacks[-1]
+            # (flip run reads this line into summary.json's landing_fallbacks)
+            self.node.get_logger().warn(f'landing fallback: own landing from t={t:.4f} s ({why})')
         if len(self.controller.dropped) > n_dropped:
             plan, start, t = self.controller.dropped[-1]
             self.node.get_logger().warn(f'plan {plan}: jumping reference from t={start:.3f} s not started: '

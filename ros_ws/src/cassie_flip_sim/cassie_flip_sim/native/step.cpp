@@ -106,11 +106,9 @@ public:
     for (long i = 0; i < n; ++i) {
       double v = ui[i];
       if (clip) {
-        // MotorLimits.bounds: avail = limit * max(1 - |w| / w0, 0); ub = avail if w > 0, lb = -avail if w < 0
-        const double w = d_->qvel[dof_[i]], L = lim_[i];
-        const double avail = L * std::max(1.0 - std::fabs(w) * inv_w0_[i], 0.0);
-        const double ub = w > 0 ? avail : L, lb = w < 0 ? -avail : -L;
-        v = std::min(std::max(v, lb), ub);
+        // MotorLimits.bounds: |u| <= limit * available_fraction (the published curve, motor_envelope.h)
+        const double avail = lim_[i] * cassie_model::available_fraction(d_->qvel[dof_[i]], inv_w0_[i]);
+        v = std::min(std::max(v, -avail), avail);
       }
       put(uo, i, v);
       d_->ctrl[act_[i]] = v;

@@ -7,18 +7,15 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "motor_envelope.h"
+
 namespace py = pybind11;
 using DArr = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 namespace
 {
-  // np.maximum(r, 0): NaN stays NaN
-  inline double max0(double r)
-  {
-    return r != r ? r : (r > 0.0 ? r : 0.0);
-  }
 
-  /// (u_lb, u_ub): -tau_max max(1 - fmax(-w, 0)/w0, 0), tau_max max(1 - fmax(w, 0)/w0, 0).
+  /// (u_lb, u_ub) = -/+ tau_max * cassie_model::available_fraction(w, 1/w0).
   py::tuple torque_bounds(const DArr & w, const DArr & inv_w0, const DArr & tau_max)
   {
     const py::ssize_t n = w.size();
@@ -29,8 +26,9 @@ namespace
     const double *wp = w.data(), *iw = inv_w0.data(), *tm = tau_max.data();
     for (py::ssize_t i = 0; i < n; ++i)
     {
-      l[i] = max0(1.0 - std::fmax(-1.0 * wp[i], 0.0) * iw[i]) * -tm[i];
-      u[i] = max0(1.0 - std::fmax(1.0 * wp[i], 0.0) * iw[i]) * tm[i];
+      const double a = tm[i] * cassie_model::available_fraction(wp[i], iw[i]);
+      l[i] = -a;
+      u[i] = a;
     }
     return py::make_tuple(lb, ub);
   }
