@@ -369,7 +369,7 @@ def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing(
     """LANDING with the planner's landing reference: a LIFT_OFF (the feet left the ground under the
     plan) drops it for the controller's own landing, says why (``landing_fallback``), and keeps the
     re-solve of the next touch-down as ``landing_plan`` only; the next flight clears it."""
-    sim, ctl = Simulator(), Controller(export_mjcf())
+    sim, ctl = Simulator(), Controller(export_mjcf(), track_hop_landing_reference=True)
     sc = StateConverter(ctl.dyn)
     ts = np.linspace(0.0, 1.0, 11)
     land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)

@@ -147,8 +147,13 @@ class ControllerConfig:
     somersault_beta_weight: float = 100.0
     # LANDING after a somersault: track the planner's landing re-solve (paper §III-C), or (False) land
     # with the controller's own profiles (leg catch, bounded momentum removal), which are also what runs
-    # when no landing reference arrives.  After a hop the re-solve is tracked either way (docs/tuning.md)
+    # when no landing reference arrives and after a rebound under the tracked plan (docs/tuning.md)
     track_landing_reference: bool = True
+    # LANDING after a hop (no turn, nothing to stop): the same choice.  Off: the hop's re-solve, planned
+    # from the pre-impact sink rate, unloads the feet ~80 ms after the touch-down; with Cassie's
+    # published motor curve the paper's robot then fell in 1 of 3 graph runs (own landing: no rebound,
+    # docs/measurements.md)
+    track_hop_landing_reference: bool = False
     # m/s: the landing's leg catch re-anchors on the body's sink rate (GroundTargets._leg_catch) when the
     # profile shortens the leg faster than the body sinks by more than this
     catch_slack: float = 0.1

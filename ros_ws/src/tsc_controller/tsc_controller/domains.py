@@ -113,13 +113,14 @@ class Controller:
     # -------------------------------------------------------------- inputs
     def set_reference(self, ref: SampledReference):
         """Store a reference (the latest per domain wins).  A LANDING one after a somersault (a FLIGHT
-        reference turning the pelvis by more than 90 deg) only with ``track_landing_reference``; else it
-        is kept as ``landing_plan`` and the controller's own landing runs."""
+        reference turning the pelvis by more than 90 deg) only with ``track_landing_reference``, after a
+        hop only with ``track_hop_landing_reference``, and not after a rebound under the tracked plan
+        (``landing_fallback``); else it is kept as ``landing_plan`` and the controller's own landing runs."""
         if ref.domain == Domain.FLIGHT and ref.has("phi_pitch") and len(ref.t):
             col = ref.names.index("phi_pitch")
             self._somersault = abs(ref.value[-1, col] - ref.value[0, col]) > math.pi / 2
-        if ref.domain == Domain.LANDING and (self.landing_fallback is not None or
-                                             (self._somersault and not self.cfg.track_landing_reference)):
+        tracked = self.cfg.track_landing_reference if self._somersault else self.cfg.track_hop_landing_reference
+        if ref.domain == Domain.LANDING and (self.landing_fallback is not None or not tracked):
             self.landing_plan = ref
             return
         self.refs[ref.domain] = ref
@@ -185,9 +186,9 @@ class Controller:
             if self.refs.get(Domain.LANDING) is not None:
                 self._landing_tracked = True
             if self.landing.done(t, self.refs.get(Domain.LANDING)):
-                if not self._landing_tracked and self.landing_fallback is None:
-                    why = "no landing plan" if self.landing_plan is None else "track_landing_reference off"
-                    self.landing_fallbacks.append((self.t_enter, why))
+                tracked = self.cfg.track_landing_reference if self._somersault else self.cfg.track_hop_landing_reference
+                if not self._landing_tracked and self.landing_fallback is None and tracked:
+                    self.landing_fallbacks.append((self.t_enter, "no landing plan"))
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.STANDING, t)
