@@ -12,6 +12,7 @@
 // loop (flip_transport._rcl_io.SimLoop) as a C table of function pointers (flip_transport's
 // native/stepper_api.h); Detector is that loop's copy of contacts.ContactDetector, exposed here for
 // its test against the Python one.
+#include "motor_envelope.h"
 #include "stepper_api.h"
 
 #include <mujoco/mujoco.h>
