@@ -1,9 +1,11 @@
 """`flip sweep --mode graph` (flip_tools.sweep_graph): each sample a `flip run` through the node graph
-with its knobs given to sim_node only.  Two backflip samples of the somersault robot, the robot's
-mass as built and x1.3: the records give the outcomes the same samples give offline (from the
-graph's own jump start: the request's latency sets it), the heavier robot falls where the other
-lands, and sim_node built the robot with the mass scaled (its log's total mass) while the planner and
-the controller were given nothing of it."""
+with its knobs given to sim_node only.  Two samples of flip A (1 m forward frontflip) of the
+somersault robot, the robot's mass as built and x1.3 (offline, A lands from 15 of 15 start times as
+built and fell x1.3 from each of 5 tried; the backflip, 12 of 15, fell in one CI graph run): the
+records give the outcomes the same samples give offline (from the graph's own jump start: the
+request's latency sets it), the heavier robot falls where the other lands, and sim_node built the
+robot with the mass scaled (its log's total mass) while the planner and the controller were given
+nothing of it."""
 import json
 import os
 import re
@@ -24,7 +26,7 @@ FLIP = REPO / "scripts" / "flip"
 def graph_sweep(tmp_path_factory):
     out = tmp_path_factory.mktemp("graph_sweep")
     env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
-    r = subprocess.run([sys.executable, str(FLIP), "sweep", "--mode", "graph", "--flips", "B",
+    r = subprocess.run([sys.executable, str(FLIP), "sweep", "--mode", "graph", "--flips", "A",
                         "--grid", "mass_scale=1.0,1.3", "--out", str(out), "--no-progress"],
                        capture_output=True, text=True, timeout=900, env=env, start_new_session=True)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -39,10 +41,10 @@ def test_graph_records_have_the_offline_outcomes(graph_sweep):
     for scale, row in rows.items():
         assert row["mode"] == "graph" and row["error"] is None
         assert row["jump_start_s"] > row["start"]          # the request's latency and the plan's lead
-        offline = P.run_sample(P.Sample("B", {"mass_scale": scale, "start": row["jump_start_s"]}))
+        offline = P.run_sample(P.Sample("A", {"mass_scale": scale, "start": row["jump_start_s"]}))
         assert offline["outcome"] == row["outcome"], (scale, offline, row)
     landed = rows[1.0]
-    assert landed["net_rotation_deg"] == pytest.approx(-360.0, abs=45.0)
+    assert landed["net_rotation_deg"] == pytest.approx(360.0, abs=45.0)
     assert landed["touchdown_s"] > landed["jump_start_s"] and landed["sim_s"] == pytest.approx(9.0, abs=1e-3)
 
 
