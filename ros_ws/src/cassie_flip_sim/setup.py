@@ -12,6 +12,9 @@ from pathlib import Path
 from pybind11.setup_helpers import Pybind11Extension, build_ext
 from setuptools import find_packages, setup
 
+# cassie_model/native: motor_envelope.h, the torque-speed envelope the step clips to (the sibling source
+# package: colcon and pip build from ros_ws/src)
+ENVELOPE_DIR = Path(__file__).resolve().parent.parent / "cassie_model" / "cassie_model" / "native"
 package_name = "cassie_flip_sim"
 
 
@@ -38,25 +41,15 @@ def stepper_api_dir() -> Path:
     return d
 
 
-def motor_envelope_dir() -> Path:
-    """cassie_model's native/ directory: motor_envelope.h, the torque-speed envelope the step clips to
-    (the sibling source package in ros_ws/src: colcon and pip build from the source tree)."""
-    d = Path(__file__).resolve().parent.parent / "cassie_model" / "cassie_model" / "native"
-    if not (d / "motor_envelope.h").is_file():
-        raise RuntimeError(f"cassie_flip_sim: no motor_envelope.h in {d}")
-    return d
-
-
 def native_extension():
     d = mujoco_dir()
     api = stepper_api_dir()
-    env = motor_envelope_dir()
     lib = sorted(d.glob("libmujoco.so.*"))[-1].name
     return Pybind11Extension(
         f"{package_name}._native",
         ["cassie_flip_sim/native/step.cpp"],
-        depends=[str(api / "stepper_api.h"), str(env / "motor_envelope.h")],
-        include_dirs=[str(d / "include"), str(api), str(env)],
+        depends=[str(api / "stepper_api.h"), str(ENVELOPE_DIR / "motor_envelope.h")],
+        include_dirs=[str(d / "include"), str(api), str(ENVELOPE_DIR)],
         library_dirs=[str(d)],
         # the library the mujoco module itself loads (same soname, one copy in the process)
         extra_link_args=[f"-l:{lib}", f"-Wl,-rpath,{d}"],

@@ -11,6 +11,9 @@ from pathlib import Path
 from pybind11.setup_helpers import ParallelCompile, Pybind11Extension, build_ext, naive_recompile
 from setuptools import find_packages, setup
 
+# cassie_model/native: motor_envelope.h, the torque-speed envelope of the QP bounds (the sibling source
+# package: colcon and pip build from ros_ws/src)
+ENVELOPE_DIR = Path(__file__).resolve().parent.parent / "cassie_model" / "cassie_model" / "native"
 package_name = "tsc_controller"
 # tick.cpp (Pinocchio) beside the small files; `python setup.py build_ext --inplace` here rebuilds only
 # the files changed since its last build (its build/ tree; pip's builds start afresh)
@@ -28,18 +31,8 @@ def cmeel_prefix() -> Path:
     return prefix
 
 
-def motor_envelope_dir() -> Path:
-    """cassie_model's native/ directory: motor_envelope.h, the torque-speed envelope of the QP bounds
-    (the sibling source package in ros_ws/src: colcon and pip build from the source tree)."""
-    d = Path(__file__).resolve().parent.parent / "cassie_model" / "cassie_model" / "native"
-    if not (d / "motor_envelope.h").is_file():
-        raise RuntimeError(f"tsc_controller: no motor_envelope.h in {d}")
-    return d
-
-
 def native_extension():
     prefix = cmeel_prefix()
-    env = motor_envelope_dir()
     lib = str(prefix / "lib")
     # -march=native with Eigen's alignment held at 16 bytes: the Model/Data layout and the heap
     # alignment Eigen assumes stay those of the pinocchio wheel (built for plain x86-64), see
@@ -56,8 +49,8 @@ def native_extension():
         ["tsc_controller/native/tick.cpp", "tsc_controller/native/task.cpp",
          "tsc_controller/native/limits.cpp", "tsc_controller/native/state.cpp",
          "tsc_controller/native/ground.cpp"],
-        include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3"), str(env)],
-        depends=[str(env / "motor_envelope.h")],
+        include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3"), str(ENVELOPE_DIR)],
+        depends=[str(ENVELOPE_DIR / "motor_envelope.h")],
         define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                        ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],
         library_dirs=[lib],

@@ -119,11 +119,15 @@ class Controller:
         if ref.domain == Domain.FLIGHT and ref.has("phi_pitch") and len(ref.t):
             col = ref.names.index("phi_pitch")
             self._somersault = abs(ref.value[-1, col] - ref.value[0, col]) > math.pi / 2
-        tracked = self.cfg.track_landing_reference if self._somersault else self.cfg.track_hop_landing_reference
-        if ref.domain == Domain.LANDING and (self.landing_fallback is not None or not tracked):
+        if ref.domain == Domain.LANDING and (self.landing_fallback is not None or not self._tracks_landing_plan()):
             self.landing_plan = ref
             return
         self.refs[ref.domain] = ref
+
+    def _tracks_landing_plan(self) -> bool:
+        """The landing after this flight follows the planner's landing plan (by configuration: after a
+        somersault ``track_landing_reference``, after a hop ``track_hop_landing_reference``)."""
+        return self.cfg.track_landing_reference if self._somersault else self.cfg.track_hop_landing_reference
 
     def on_contact_event(self, kind: int, *args):
         """LIFT_OFF (0) or TOUCH_DOWN (1): ``on_contact_event(kind, t)`` or
@@ -186,8 +190,7 @@ class Controller:
             if self.refs.get(Domain.LANDING) is not None:
                 self._landing_tracked = True
             if self.landing.done(t, self.refs.get(Domain.LANDING)):
-                tracked = self.cfg.track_landing_reference if self._somersault else self.cfg.track_hop_landing_reference
-                if not self._landing_tracked and self.landing_fallback is None and tracked:
+                if not self._landing_tracked and self.landing_fallback is None and self._tracks_landing_plan():
                     self.landing_fallbacks.append((self.t_enter, "no landing plan"))
                 self.refs.pop(Domain.LANDING, None)
                 self.refs.pop(Domain.FLIGHT, None)
