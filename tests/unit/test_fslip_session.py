@@ -95,6 +95,29 @@ def test_landing_reference_converges_to_rest(flow):
     assert 0 < lr.figures["solve_time"] < 1.0
 
 
+def test_landing_plan_stands_up_without_jumping_again():
+    """From a measured touch-down state of flip D (sinking at 1.92 m/s, 36.7 kg m²/s to take out), the
+    landing plan comes to rest inside its limits and its COM never rises faster than
+    RISE_RESTITUTION times the sink speed (unbounded it crouched and sprang back up at 0.79 m/s with
+    F_z down to 47 N, and the robot tracking it left the ground: the "rebound" fallback)."""
+    from fslip_planner import landing as LD
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=0.6, motor_speed_scale=3.0,
+                      flywheel_torque=260.0)
+    s.jumping_reference()
+    p = s.robot.params
+    x0 = np.array([-0.373, 0.833, 0.737, -1.922, 36.7])      # [x, z, ẋ, ż, H], foot at the origin
+    sol = LandingProblem(p, s.robot.L0).solve(x0, warm=False)
+    X = sol.X
+    assert np.max(X[:, 3]) <= min(0.4, LD.RISE_RESTITUTION * 1.922 + 1e-6)
+    assert np.all(sol.Fz >= -1e-3) and np.all(np.abs(sol.Fx) <= p.mu * sol.Fz + 1e-3)
+    assert np.all(sol.L >= p.L_min - 1e-6) and np.all(sol.L <= p.L_max + 1e-6)
+    assert np.allclose(X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)                  # at rest over the foot
+    assert sol.Fz[-1] == pytest.approx(p.m * p.g, rel=1e-6)
+    # after the catch the feet stay loaded: no knot plans a near-flight
+    lowest = int(np.argmin(X[:, 1]))
+    assert np.min(sol.Fz[lowest:]) > 0.3 * p.m * p.g
+
+
 def test_landing_is_planned_from_where_the_feet_came_down():
     """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
     reference ends over those feet: two touch-downs that differ only in where the feet are get

@@ -6,6 +6,8 @@ free (the impact is over, the leg force starts wherever it is).  Final state at 
 z_N = z_des, ẋ_N = ż_N = x_N = 0, H_N = 0 (θ̇ = 0), F^s_N = m g (τ_N = u_N = 0), held over
 the last knot interval so that the reference ends with L̇ = 0.
 Cost: the jumping cost + α Σ ṡ² ΔT (spring oscillation; ṡ by differences of s = L − r).
+The mass rises at most e·|ż(0)| (e = :data:`RISE_RESTITUTION`, at least :data:`RISE_FLOOR`): a landing
+stands up, it does not jump again (see the constant).
 
 ``free_momentum=True`` (fallback when a measured state cannot be brought to H = 0, e.g. an
 under-rotated flip with a fast-spinning flywheel) drops H_N = 0: the flywheel keeps its momentum.
@@ -30,6 +32,12 @@ ALPHA = 1e-1
 # bounced off after a backflip (docs/measurements.md, Landing plan tracked).  40 knots keep ΔT ≤ 0.05 s.
 T_BOUNDS = (0.4, 2.0)
 N_KNOTS = 40
+#: The plan's COM rises at most RISE_RESTITUTION times the touch-down sink speed (a restitution bound,
+#: not below RISE_FLOOR m/s).  Unbounded, the optimum crouches on the spring and springs back up at
+#: ~0.8 m/s with F_z falling to ~50 N; the robot, lagging the crouch, overshoots that rise and its feet
+#: leave the ground (the "rebound" fallback in most landings of flip C and D; docs/measurements.md).
+RISE_RESTITUTION = 0.2
+RISE_FLOOR = 0.2
 WARM_OPTS = dict(Jm.IPOPT_OPTS)
 WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-6,
                   "ipopt.warm_start_mult_bound_push": 1e-6, "ipopt.mu_init": 1e-4,
@@ -56,6 +64,7 @@ class LandingProblem:
         opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
         L = Jm.transcribe(opti, X, U, T, p, N)
         self.L = L
+        opti.subject_to(X[3, :] <= ca.fmax(-RISE_RESTITUTION * self.X0[3], RISE_FLOOR))
         rows = slice(0, 4) if free_momentum else slice(0, 5)
         for k in (N - 2, N - 1):       # at rest over the last interval (L̇ = 0 at the end)
             opti.subject_to(X[rows, k] == Xs[rows])
