@@ -327,6 +327,41 @@ def test_a_plan_starts_where_the_robot_stands():
         assert np.array_equal(ref1.column(name)[0], ref0.column(name)[0])
 
 
+def test_a_turned_robot_gets_the_plans_of_one_facing_x():
+    """The plans' x is along the heading the robot stands with at the request (FlipSession.heading):
+    a robot turned 0.3 rad about the vertical through its pelvis, whose touch-down state is the
+    facing-x one turned with it (world-y pitch momentum: cos ψ of the somersault's), gets the jump and
+    the landing of the robot facing x, to rounding."""
+    psi = 0.3
+    c, s_ = math.cos(psi), math.sin(psi)
+    Rz = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def flip(turn):
+        sess = P.FlipSession("backflip", **FLIP)
+        st = _pelvis(sess.robot, x=0.2, ground=FLIP["platform_height"])
+        pivot = st.position.copy()
+        if turn:
+            st.orientation = np.array([0.0, 0.0, math.sin(psi / 2), math.cos(psi / 2)])
+        jr = sess.jumping_reference(st)
+        sess.started(10.0)
+        lo = sess.result.lift_off
+        t_lo = 10.0 + jr.duration
+        sess.flight_reference(P.MeasuredState(t_lo, np.array([0.12, 0.0, 1.5]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                                              lo["momentum"], lo["beta"], -2.0))
+        com, vel, sup = np.array([0.35, 0.01, 0.95]), np.array([0.4, 0.02, -3.5]), np.array([0.45, 0.0, 0.02])
+        H = -38.0
+        if turn:                                      # the same touch-down, turned about the pivot
+            com, sup = (pivot + Rz @ (p - pivot) for p in (com, sup))
+            vel, H = Rz @ vel, H * c
+        lr = sess.landing_reference(P.MeasuredState(t_lo + 0.6, com, vel, H, 0.2, 1.0, sup))
+        return jr, lr
+
+    (j0, l0), (j1, l1) = flip(False), flip(True)
+    for a, b in ((j0, j1), (l0, l1)):
+        for name in a.names:
+            assert np.allclose(b.column(name)[0], a.column(name)[0], atol=1e-6), name
+
+
 @pytest.mark.parametrize("what, kw, words", [
     ("lying", dict(dz=-0.8, pitch=math.radians(90)), "tilted 90.0 deg"),
     ("leaning", dict(pitch=math.radians(15)), "tilted 15.0 deg"),

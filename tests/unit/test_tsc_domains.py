@@ -391,3 +391,32 @@ def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing(
     assert Domain.LANDING not in ctl.refs and ctl.landing_plan is again
     ctl._enter(Domain.FLIGHT, sim.time)
     assert ctl.landing_fallback is None
+
+
+def test_the_landing_after_a_jump_is_tracked_in_the_jumps_heading_frame():
+    """The landing plan's x is along the heading the jump started with (the planner turns the measured
+    touch-down state into that frame: fslip_planner.heading_frame): the same plan tracked by a robot
+    turned 0.3 rad about its pelvis gives the torques it gives the robot facing x."""
+    ts = np.linspace(0.0, 1.0, 11)
+    x0 = float(Simulator().com_position()[0])     # the standing COM x facing x: its x along the heading
+
+    def landing_command(psi):
+        sim, ctl = Simulator(), Controller(export_mjcf())
+        q = sim.standing_qpos.copy()
+        q[3:7] = [math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)]
+        sim.reset(q)
+        sc = StateConverter(ctl.dyn)
+        qq, v = sc.from_simulator(sim)
+        ctl.compute(qq, v, sim.time)
+        ctl._heading_frame(qq)                       # the heading taken at the jump's start
+        ctl._somersault = True
+        ctl._enter(Domain.LANDING, sim.time)
+        ctl.set_reference(SampledReference(Domain.LANDING, ts, ["L", "x_com"],
+                                           np.column_stack([np.full(11, 0.8), x0 + 0.03 * ts]), start_time=0.0))
+        ctl.u_prev = np.zeros(ctl.dyn.nu)             # (STANDING, in the world frame, differs: its x and y differ)
+        u, _ = ctl.compute(qq, v, sim.time + 0.1)
+        assert ctl.domain == Domain.LANDING and Domain.LANDING in ctl.refs
+        return u
+
+    u0, u_turned = landing_command(0.0), landing_command(0.3)
+    assert np.max(np.abs(u_turned - u0)) < 1e-9 * np.max(np.abs(u0))

@@ -23,6 +23,7 @@ from . import flight as Fl
 from . import jumping as Jm
 from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck, rotation_xyzw,
                           standing_com_x, unreachable_message, validate_inputs)
+from .heading_frame import HeadingFrame
 from .landing import LandingProblem
 from .plan_types import MeasuredState, PelvisState, Reference
 
@@ -291,7 +292,9 @@ class FlipSession:
         self.apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
         self.distance, self.platform = dist, plat
         self.result: Optional[PlanResult] = None
-        self.x_start: Optional[float] = None      # world COM x the jump starts from
+        self.x_start: Optional[float] = None      # COM x the jump starts from (heading frame)
+        #: the frame of the pelvis at the request: the plans' x is along its heading (None: world)
+        self.heading: Optional[HeadingFrame] = None
         self.t_start = self.t_liftoff = self.t_touchdown = None
         self.landing_end = None
         self._landing: Optional[LandingProblem] = None
@@ -306,6 +309,11 @@ class FlipSession:
         if self.x_start is None:
             self.x_start = (float(self.robot.com0[0]) if state is None
                             else standing_com_x(state, self.robot, self.platform))
+            if state is not None:
+                self.heading = HeadingFrame.of_pelvis(state.position, state.orientation)
+                if self.heading.psi != 0.0:        # the standing COM in that frame
+                    com = state.position + rotation_xyzw(state.orientation) @ self.robot.com_in_pelvis
+                    self.x_start = float(self.heading.point(com)[0])
         if self.result is None:
             sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot)
             fig, lo = _figures(sol, self.robot)
@@ -400,6 +408,8 @@ class FlipSession:
             return None
         t0 = time.perf_counter()
         self.t_touchdown = float(state.t)
+        if self.heading is not None:
+            state = self.heading.measured(state)
         x0 = self._touchdown_state(state)
         foot_x = float(state.com[0]) - x0[0]        # the measured feet (up to the lean bound)
         fig = dict(self.result.figures)

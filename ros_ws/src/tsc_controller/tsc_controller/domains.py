@@ -210,9 +210,11 @@ class Controller:
 
     def _heading_frame(self, q):
         """``q`` with the floating base turned about the vertical through its position at the jump's
-        start by minus its heading then (gravity unchanged; the base velocities are local): the jump's
-        and the flight's outputs (pitch momentum, sagittal pitch, leg and toe angles, pelvis axis) and
-        the plan's x/z are in the world x-z plane, the somersault's plane only for a robot facing x."""
+        start by minus its heading then (gravity unchanged; the base velocities are local): the jump's,
+        the flight's and the landing's outputs (pitch momentum, sagittal pitch, leg and toe angles,
+        pelvis axis) and the plans' x/z are in the world x-z plane, the somersault's plane only for a
+        robot facing x (the planner turns the measured touch-down state the same way:
+        fslip_planner.heading_frame)."""
         b = self.dyn.model.idx_qs[self.dyn.base_jid]
         x, y, z, w = q[b + 3:b + 7]
         if self._heading is None:
@@ -266,8 +268,8 @@ class Controller:
             v[self.dyn.spring_v] = 0.0
         if self.fallen:
             return self._fallen_command(v, t0)
-        if self.domain in (Domain.JUMPING, Domain.FLIGHT):
-            q = self._heading_frame(q)
+        if self.domain in (Domain.JUMPING, Domain.FLIGHT) or (self.domain == Domain.LANDING and self._heading):
+            q = self._heading_frame(q)       # the landing after a jump too: the planner plans it in that frame
         self.dyn.update(q, v)
         t_dyn = time.perf_counter() - t0
         self._update_pitch()
