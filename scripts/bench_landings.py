@@ -33,7 +33,8 @@ EXPECTED = EXPECTED_TURN
 
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
-        distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None) -> dict:
+        distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None,
+        heading: list | None = None) -> dict:
     import numpy as np
 
     from flip_tools import offline as of
@@ -47,6 +48,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
                      **config_overrides(controller))
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex, x_start=x_start,
+               heading=heading,
                forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque)
     lo, td = lift_off_touch_down(r["events"])
     out = {"kind": kind, "start": start, "fell_at": r["fell"], "flight_s": None, "td_rotation_deg": None,
@@ -108,6 +110,8 @@ def main() -> int:
                     help="landing ground this much higher than the planner is told (m; flip D: 0.1)")
     ap.add_argument("--x-start", type=float, default=None,
                     help="COM x the jump starts from (a run's summary.json planner.x_start_m; default: the initial one)")
+    ap.add_argument("--heading", type=float, nargs=3, default=None, metavar=("PSI", "PIVOT_X", "PIVOT_Y"),
+                    help="with --x-start: the heading frame the plans start in (a run's summary.json planner.heading)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
@@ -121,7 +125,7 @@ def main() -> int:
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
-                            a.distance, a.platform, a.ground_offset, a.x_start)
+                            a.distance, a.platform, a.ground_offset, a.x_start, a.heading)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (flip_tools.offline): motor speed scale {a.motor_speed_scale}, flywheel "

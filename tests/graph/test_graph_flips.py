@@ -161,7 +161,7 @@ def assert_offline_reproduces(out, od):
         return u, info
     ctl.compute = checked
     r = of.run(req["kind"], seconds=max(pos) * 0.0005, start=start, sim=sim, controller=ctl, every=100, node_state=True,
-               x_start=x_start,
+               x_start=x_start, heading=planner["heading"],
                apex_height=req["apex_height"] or None, forward_distance=req["forward_distance"],
                platform_height=req["platform_height"], motor_speed_scale=sp["motor_speed_scale"],
                flywheel_torque=sp["flywheel_torque"])

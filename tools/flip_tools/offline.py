@@ -19,6 +19,7 @@ import numpy as np
 
 from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
+from fslip_planner.heading_frame import HeadingFrame
 from fslip_planner.pitch_turns import PitchTurns
 from fslip_planner.plan import FLIGHT, FlipSession, MeasuredState, PelvisState
 from tsc_controller import Controller, SampledReference, StateConverter
@@ -114,13 +115,14 @@ def _log_sample(log: dict, sim: Simulator, ctl: Controller, info: dict, fw_dof: 
 
 
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
-        node_state=False, x_start=None, on_step=None, plant=None, turns=None, **request):
+        node_state=False, x_start=None, heading=None, on_step=None, plant=None, turns=None, **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
     ``on_step(sim, ctl, u, info)``, if given, sees every step's command before it is applied.
     ``node_state``: the controller reads the state as tsc_node does (:class:`NodeStateReader`).
     ``x_start``: the COM x the jump plan starts from (a graph run's JUMPING reference parameter
     ``x_start``, summary.json's ``planner.x_start_m``); None: measured as planner_node measures it,
-    from the standing pelvis (:func:`pelvis_state`) ``REQUEST_LEAD`` s before ``start``.
+    from the standing pelvis (:func:`pelvis_state`) ``REQUEST_LEAD`` s before ``start``; ``heading``
+    with it: (ψ, pivot x, pivot y), summary.json's ``planner.heading`` (None: the world frame).
     ``plant``: perturbations of the simulated robot that the planner and controller are not told
     (flip_tools.perturb.Plant): it may wrap the controller's state reader (sensor noise), sees each
     contact event, and may replace each step's command (delay) or push the pelvis before the step.
@@ -139,6 +141,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
 
     def plan(state=None):
         session.x_start = x_start
+        if x_start is not None and heading is not None:
+            session.heading = HeadingFrame(float(heading[0]), (float(heading[1]), float(heading[2])))
         ref = session.jumping_reference(state)
         session.started(start)
         ctl.set_reference(to_sampled(ref, start))

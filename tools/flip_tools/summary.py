@@ -324,6 +324,9 @@ def _planner(s: dict, data: BagData, t_fall: float, notes: list[str]) -> None:
             "start_time_s": next((_f(r["start_time"], 4) for r in refs if r["domain"] == JUMPING), None),
             # ... from the COM x the planner measured (--x-start; unrounded: a re-run to the bit needs it all)
             "x_start_m": next((r["parameters"].get("x_start") for r in refs if r["domain"] == JUMPING), None),
+            # ... in the frame of the pelvis' heading at the request (rad; m, m), as the plans are
+            "heading": next(([r["parameters"][k] for k in ("heading", "heading_pivot_x", "heading_pivot_y")]
+                             for r in refs if r["domain"] == JUMPING and "heading" in r["parameters"]), None),
             "planned_peak_flywheel_speed_radps": _f(max(r["peak_flywheel_speed"] for r in refs), 2),
         }
         _tracking(s, data, fr["refs"], t_fall, notes)

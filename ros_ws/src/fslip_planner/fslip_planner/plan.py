@@ -320,10 +320,13 @@ class FlipSession:
             self.result = PlanResult(self.kind, {}, sol, fig, lo)
             self._prepare_landing()
         r = self.result
-        # x_start: where the plan starts (published, so that an offline re-run starts there, to the bit)
-        return ground_reference(JUMPING, r.solution, self.x_start, r.figures,
-                                {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"],
-                                 "x_start": self.x_start})
+        # x_start and the heading frame: where and how the plans start (published, so that an offline
+        # re-run starts there, to the bit)
+        par = {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"], "x_start": self.x_start}
+        if self.heading is not None:
+            par.update(heading=self.heading.psi, heading_pivot_x=self.heading.pivot[0],
+                       heading_pivot_y=self.heading.pivot[1])
+        return ground_reference(JUMPING, r.solution, self.x_start, r.figures, par)
 
     def _prepare_landing(self):
         """Build the landing NLP and solve it for the predicted touch-down (warm start later)."""
