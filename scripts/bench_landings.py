@@ -72,6 +72,12 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
                        for _, ref in r["references"] if ref.domain == 3]
     # the landings the controller's own landing did instead of the tracked plan (reason each)
     out["own_landing"] = [why for _, why in r["ctl"].landing_fallbacks]
+    # the flywheel's peak speed (rpm) in the flight and in the landing (issue 22: the landing's at most the flight's)
+    out["fw_peak_rpm"] = None
+    if td is not None:
+        t, w = r["t"], np.abs(r["fw"]) * 30.0 / math.pi
+        fl, ld = w[(t >= lo) & (t < td)], w[t >= td]
+        out["fw_peak_rpm"] = (float(fl.max()) if fl.size else None, float(ld.max()) if ld.size else None)
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     out["landed"] = outcome(r, kind) == "landed"
     return out
@@ -85,6 +91,13 @@ def _state_row(st) -> dict | None:
     ahead = None if st.support_center is None else float(st.com[0] - st.support_center[0])
     return {"com_ahead_of_feet": ahead, "xdot": float(st.com_velocity[0]), "zdot": float(st.com_velocity[2]),
             "H": float(st.pitch_momentum)}
+
+
+def fw_cell(peaks) -> str:
+    """'flight / landing' peak flywheel speeds (rpm), '-' where there was no touch-down."""
+    if not peaks:
+        return "-"
+    return " / ".join("-" if p is None else f"{p:.0f}" for p in peaks)
 
 
 def start_cell(start: float) -> str:
@@ -132,16 +145,16 @@ def main() -> int:
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
           f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
     print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg "
-          "| landing re-solve ms (iterations, attempt) | own landing |")
+          "| landing re-solve ms (iterations, attempt) | own landing | flywheel peak rpm: flight / landing |")
     print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------"
-          "|---|---|")
+          "|---|---|---|")
     f = lambda x, nd: "-" if x is None else f"{x:.{nd}f}"  # noqa: E731
     for r in rows:
         rs = ", ".join(f"{v['ms']:.1f} ({v['iterations']}, {v['fallback']})" for v in r["resolves"]) or "-"
         print(f"| {r['kind']} | {start_cell(r['start'])} | {'yes' if r['landed'] else 'no'} | "
               f"{'yes' if r['at_rest'] else 'no'} | {f(r['fell_at'], 3)} | "
               f"{f(r['flight_s'], 3)} | {f(r['td_rotation_deg'], 1)} | {f(r['td_axis_tilt_deg'], 2)} | {rs} | "
-              f"{', '.join(r['own_landing']) or '-'} |")
+              f"{', '.join(r['own_landing']) or '-'} | {fw_cell(r['fw_peak_rpm'])} |")
     if a.states:
         print()
         print("| flip | start s | lift-off COM ahead of feet m (plan) | ẋ m/s (plan) | ż m/s (plan) | H kg m²/s (plan) "
@@ -163,6 +176,9 @@ def main() -> int:
         print(f"landing re-solve at the first touch-down: median {statistics.median(ms):.1f} ms, max {max(ms):.1f} ms; "
               f"IPOPT iterations median {statistics.median(its):.0f}, max {max(its)}; answered by a fallback "
               f"(cold / momentum free / blend) in {sum(v['fallback'] > 0 for v in first)} of {len(first)}")
+    over = [r for r in rows if r["fw_peak_rpm"] and None not in r["fw_peak_rpm"]
+            and r["fw_peak_rpm"][1] > r["fw_peak_rpm"][0]]
+    print(f"flywheel faster in the landing than in the flight in {len(over)} of {len(rows)} runs")
     own = [r for r in rows if r["own_landing"]]
     print(f"own landing (the controller's fallback) in {len(own)} of {len(rows)} runs"
           + (f": {', '.join(sorted({w for r in own for w in r['own_landing']}))}" if own else ""))

@@ -177,6 +177,8 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert float(cells[5]) > flight_min                             # the flight
     assert float(cells[6]) == pytest.approx(turn, abs=10.0)         # one turn at touch-down
+    fw_flight, fw_landing = (float(x) for x in cells[10].split(" / "))   # the flywheel turns the body
+    assert fw_flight > 2000.0 and fw_landing > 0.0
     # 2.45 s: the robot is still catching the landing, so not at rest, and so not landed yet
     assert cells[2:4] == ["no", "no"], row
     assert r.stdout.splitlines()[-1].startswith(f'{{"{kind}": ')
