@@ -17,15 +17,18 @@ START_TIMES = (1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0)
 GAP_S = 0.5
 
 
-def chain(kind: str, start: float, flips: int, seconds: float, scale: float, torque: float, apex: float) -> list[str]:
+def chain(kind: str, start: float, flips: int, seconds: float, scale: float, torque: float, apex: float,
+          controller: str = "") -> list[str]:
     """The outcomes (flip_tools.offline.outcome) of up to ``flips`` flips in a row from ``start``."""
     from cassie_flip_sim.simulator import Simulator
     from cassie_model.model import export_mjcf
     from flip_tools import offline as of
     from fslip_planner.feasibility import InfeasibleRequest
     from tsc_controller import Controller
+    from tsc_controller.config import config_overrides
     sim = Simulator(motor_speed_scale=scale, flywheel_torque=torque)
-    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
+                     **config_overrides(controller))
     turns, t, out = None, start, []
     for i in range(flips):
         try:
@@ -52,11 +55,15 @@ def main() -> int:
     ap.add_argument("--motor-speed-scale", type=float, default=3.0)
     ap.add_argument("--flywheel-torque", type=float, default=260.0)
     ap.add_argument("--apex", type=float, default=1.3)
+    ap.add_argument("--controller", default="", help="ControllerConfig overrides, JSON (as flip run --controller)")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
+    from tsc_controller.config import config_overrides
+    config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(a.jobs) as ex:
-        futs = [ex.submit(chain, k, s, a.flips, a.seconds, a.motor_speed_scale, a.flywheel_torque, a.apex)
+        futs = [ex.submit(chain, k, s, a.flips, a.seconds, a.motor_speed_scale, a.flywheel_torque, a.apex,
+                          a.controller)
                 for k, s in jobs]
         results = [f.result() for f in futs]
     print("| kind | first start (s) | " + " | ".join(f"flip {i + 1}" for i in range(a.flips)) + " |")
