@@ -28,7 +28,8 @@ from flip_tools.flip_request import request_distance
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
 from flip_tools.summary import LANDING_CRITERIA  # noqa: F401
 
-START_TIMES = (0.3, 0.4, 0.5, 0.6, 0.7, 1.1, 1.35, 1.6, 1.85, 2.1, 2.35, 2.6, 2.85, 3.1, 3.6)
+#: start times of the jump (s): 0.3, 0.4, ..., 3.2 (the robot has stood that long; 30 of them)
+START_TIMES = tuple(round(0.3 + 0.1 * i, 1) for i in range(30))
 EXPECTED = EXPECTED_TURN
 
 
