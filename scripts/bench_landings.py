@@ -136,6 +136,14 @@ def main() -> int:
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
+    from fslip_planner.plan import FlipSession, InfeasibleRequest
+    for k in a.kinds:                                   # a request the planner refuses: its reason, exit 4
+        try:
+            FlipSession(k, apex_height=a.apex, forward_distance=a.distance, platform_height=a.platform,
+                        motor_speed_scale=a.motor_speed_scale, flywheel_torque=a.flywheel_torque).jumping_reference()
+        except InfeasibleRequest as e:
+            print(f"{k}: the planner refuses the request: {e}", file=sys.stderr)
+            return 4
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,

@@ -195,6 +195,20 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
         assert float(cells[8]) < -2.0
 
 
+def test_bench_landings_says_why_the_planner_refuses_a_request():
+    """A request the planner refuses (here the published knees and a 1.3 m apex) gets the planner's
+    reason and exit code 4, as `flip plan`, before any run (not a worker's traceback)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
+    r = subprocess.run([sys.executable, str(script), "--kinds", "backflip", "--starts", "0.5", "--jobs", "1",
+                        "--motor-speed-scale", "1", "--apex", "1.3"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert "the planner refuses the request" in r.stderr and "knee torque" in r.stderr
+    assert "Traceback" not in r.stderr and "| backflip |" not in r.stdout
+
+
 def test_bench_landings_at_rest_is_the_verdicts_check():
     """bench_landings' at-rest check is `flip run`'s (flip_tools.summary.LANDING_CRITERIA): the pelvis'
     speed and angular speed below their limits over the last 0.5 s, whatever came before."""
