@@ -94,6 +94,24 @@ def _state_row(st) -> dict | None:
             "H": float(st.pitch_momentum)}
 
 
+def refusal(a) -> str | None:
+    """Why the planner refuses one of the requests (``a``: the parsed arguments), or None."""
+    from fslip_planner.plan import FlipSession, InfeasibleRequest
+    for k in a.kinds:
+        try:
+            FlipSession(k, apex_height=a.apex, forward_distance=a.distance, platform_height=a.platform,
+                        motor_speed_scale=a.motor_speed_scale, flywheel_torque=a.flywheel_torque).jumping_reference()
+        except InfeasibleRequest as e:
+            return f"{k}: the planner refuses the request: {e}"
+    return None
+
+
+def faster_in_landing(rows) -> int:
+    """How many runs' flywheel peaked higher in the landing than in the flight."""
+    return sum(1 for r in rows if r["fw_peak_rpm"] and None not in r["fw_peak_rpm"]
+               and r["fw_peak_rpm"][1] > r["fw_peak_rpm"][0])
+
+
 def fw_cell(peaks) -> str:
     """'flight / landing' peak flywheel speeds (rpm), '-' where there was no touch-down."""
     if not peaks:
@@ -136,14 +154,10 @@ def main() -> int:
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
-    from fslip_planner.plan import FlipSession, InfeasibleRequest
-    for k in a.kinds:                                   # a request the planner refuses: its reason, exit 4
-        try:
-            FlipSession(k, apex_height=a.apex, forward_distance=a.distance, platform_height=a.platform,
-                        motor_speed_scale=a.motor_speed_scale, flywheel_torque=a.flywheel_torque).jumping_reference()
-        except InfeasibleRequest as e:
-            print(f"{k}: the planner refuses the request: {e}", file=sys.stderr)
-            return 4
+    why = refusal(a)
+    if why:                                             # a request the planner refuses: its reason, exit 4
+        print(why, file=sys.stderr)
+        return 4
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
@@ -185,9 +199,7 @@ def main() -> int:
         print(f"landing re-solve at the first touch-down: median {statistics.median(ms):.1f} ms, max {max(ms):.1f} ms; "
               f"IPOPT iterations median {statistics.median(its):.0f}, max {max(its)}; answered by a fallback "
               f"(cold / momentum free / blend) in {sum(v['fallback'] > 0 for v in first)} of {len(first)}")
-    over = [r for r in rows if r["fw_peak_rpm"] and None not in r["fw_peak_rpm"]
-            and r["fw_peak_rpm"][1] > r["fw_peak_rpm"][0]]
-    print(f"flywheel faster in the landing than in the flight in {len(over)} of {len(rows)} runs")
+    print(f"flywheel faster in the landing than in the flight in {faster_in_landing(rows)} of {len(rows)} runs")
     own = [r for r in rows if r["own_landing"]]
     print(f"own landing (the controller's fallback) in {len(own)} of {len(rows)} runs"
           + (f": {', '.join(sorted({w for r in own for w in r['own_landing']}))}" if own else ""))
