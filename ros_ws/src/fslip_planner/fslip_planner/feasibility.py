@@ -235,4 +235,10 @@ def standing_com_x(state, robot, ground_z: float = 0.0) -> float:
     if off:
         raise InfeasibleRequest(f"not_standing: the robot is not standing at rest at sim t = {state.t:.3f} s: "
                                 + "; ".join(off), "not_standing")
-    return float(state.position[0] + (R @ robot.com_in_pelvis)[0])
+    return float(com_of_standing(state, robot)[0])
+
+
+def com_of_standing(state, robot):
+    """World COM of the robot standing with its pelvis at ``state`` (a ``plan.PelvisState``): its standing
+    COM in the pelvis frame carried by the measured pelvis, as the jumping plan's x_start is found."""
+    return np.asarray(state.position, float) + rotation_xyzw(state.orientation) @ robot.com_in_pelvis

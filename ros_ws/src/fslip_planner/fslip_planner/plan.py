@@ -21,8 +21,8 @@ import numpy as np
 from . import fslip as F
 from . import flight as Fl
 from . import jumping as Jm
-from .feasibility import (InfeasibleRequest, check_flight, max_vertical_jump, precheck, rotation_xyzw,
-                          standing_com_x, unreachable_message, validate_inputs)
+from .feasibility import (InfeasibleRequest, check_flight, com_of_standing, max_vertical_jump, precheck,
+                          rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
 from .heading_frame import HeadingFrame
 from .landing import LandingProblem
 from .plan_types import MeasuredState, PelvisState, Reference
@@ -312,8 +312,7 @@ class FlipSession:
             if state is not None:
                 self.heading = HeadingFrame.of_pelvis(state.position, state.orientation)
                 if self.heading.psi != 0.0:        # the standing COM in that frame
-                    com = state.position + rotation_xyzw(state.orientation) @ self.robot.com_in_pelvis
-                    self.x_start = float(self.heading.point(com)[0])
+                    self.x_start = float(self.heading.point(com_of_standing(state, self.robot))[0])
         if self.result is None:
             sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot)
             fig, lo = _figures(sol, self.robot)

@@ -34,7 +34,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from .feasibility import rotation_xyzw
+from .feasibility import com_of_standing
 from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
 from .pitch_turns import PitchTurns
 from .plan_geometry import reference_geometry
@@ -67,12 +67,6 @@ def measured_state(ev):
         pelvis_pitch=pitch,
         pelvis_pitch_rate=ev.pelvis_twist.angular.y,
         support_center=np.array([ev.support_center.x, ev.support_center.y, ev.support_center.z]))
-
-
-def com_of_standing(state, robot):
-    """World COM of the robot standing with its pelvis at ``state`` (its standing COM in the pelvis
-    frame carried by the measured pelvis, as the jumping plan's x_start is found)."""
-    return np.asarray(state.position, float) + rotation_xyzw(state.orientation) @ robot.com_in_pelvis
 
 
 def geometry_of(msg, **anchor):
