@@ -159,6 +159,7 @@ def test_planner_node_plans_from_the_measured_standing_state(ros_graph):
     from std_msgs.msg import String
     desc = tn.node.create_publisher(String, "/robot_description_mjcf", LATCHED_QOS)
     desc.publish(String(data=export_mjcf("III")))
+    tn.spin_for(1.0)                                  # the planner takes the description before the request
     other = tn.call(RequestFlip, "/request_flip", R(kind=R.HOP), timeout=60)
     assert not other.accepted and other.reason.startswith("robot_mismatch:"), other.reason
     assert "28.63 kg" in other.reason and "flywheel I " in other.reason, other.reason
