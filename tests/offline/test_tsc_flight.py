@@ -21,10 +21,10 @@ from tsc_controller.profiles import leg_catch
 T_FLIGHT = 0.9
 
 
-def run_flight(sign):
+def run_flight(sign, pitch_output=True):
     sim = Simulator()
     w0 = launch(sim, sign, T_FLIGHT, 0.4)
-    ctl = Controller(export_mjcf())
+    ctl = Controller(export_mjcf(), flight_pitch_output=pitch_output)
     sc = StateConverter(ctl.dyn)
     ctl._enter(Domain.FLIGHT, 0.0)                  # as after a LIFT_OFF event
     ctl.set_reference(flight_reference(sign, w0, T_FLIGHT))
@@ -41,9 +41,13 @@ def run_flight(sign):
     return dict(sim=sim, ctl=ctl, H=np.array(H), fw=np.array(fw_speed), t_td=sim.time)
 
 
-@pytest.fixture(scope="module", params=[1, -1], ids=["frontflip", "backflip"])
+@pytest.fixture(scope="module", params=[(1, True), (-1, True), (1, False), (-1, False)],
+                ids=["frontflip", "backflip", "frontflip-momentum", "backflip-momentum"])
 def flight(request):
-    return request.param, run_flight(request.param)
+    """Each turn with the pelvis pitch as FLIGHT's output and with eq. (momentumTrans)'s flywheel
+    momentum (``flight_pitch_output`` False, the paper's Y^F_1)."""
+    sign, pitch_output = request.param
+    return sign, run_flight(sign, pitch_output)
 
 
 def test_flight_turns_the_body_by_2pi(flight):

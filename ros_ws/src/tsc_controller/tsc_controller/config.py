@@ -134,8 +134,8 @@ class ControllerConfig:
     k_theta: float = 10.0             # 1/s, pitch feedback of the momentum transmission (eq. momentumTrans)
     # FLIGHT with a planned pelvis pitch (``phi_pitch``): track it as an output of its own (value, rate
     # and acceleration; the QP's full dynamics find the flywheel torque) instead of eq. (momentumTrans)'s
-    # flywheel momentum, whose rate regulation misses what the legs do to the pelvis.  Needs the FLIGHT
-    # torque smoothing (docs/tuning.md)
+    # flywheel momentum (the paper's Y^F_1): that one lands B, F, A, D as well but fails flip C, whose
+    # feet then come down 0.25 m ahead of the COM.  Needs the FLIGHT torque smoothing (docs/tuning.md)
     flight_pitch_output: bool = True
     # FLIGHT after T1: the foot placement (a world leg angle for the pelvis at its final pitch) is aimed
     # through the measured pelvis pitch, i.e. the legs ride with the pelvis until it gets there; aimed

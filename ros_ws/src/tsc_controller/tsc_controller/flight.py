@@ -70,7 +70,7 @@ class Flight:
         elif "phi_pitch" in smp and self.cfg.flight_pitch_output:
             outs, des = [self.o_pitch], [d("phi_pitch", None)]
         else:
-            outs, des = [self.o_Hfw], [Desired(np.array([self._momentum_transmission(smp, pitch)]), z, z)]
+            outs, des = [self.o_Hfw], [Desired(*self._momentum_transmission(smp, pitch), z)]
         outs = outs + self.o_Lleg
         des = des + [d("L", f["L"][k]) for k in range(2)]
         if tau < T1:
@@ -114,9 +114,17 @@ class Flight:
         return float(dyn.data.Ig.inertia[1, 1]) - self.o_Hfw._I
 
     def _momentum_transmission(self, smp, pitch):
-        """Eq. (momentumTrans): H_fw^des = H_pitch - (omega_des - k (theta_pelvis - theta_des)) * sum_i I_i,
-        with theta_des, omega_des from the reference's ``phi_pitch`` (value, d_value) or 0 (level pelvis)."""
-        H_pitch = float(self.dyn.Ag[4] @ self.dyn.v)
-        th_des, om_des = (smp["phi_pitch"][0], smp["phi_pitch"][1]) if "phi_pitch" in smp else (0.0, 0.0)
-        om_cl = om_des - self.cfg.k_theta * (pitch - th_des)
-        return H_pitch - om_cl * self._rest_inertia()
+        """Eq. (momentumTrans): H_fw^des = H_pitch - omega_cl * sum_i I_i with omega_cl = omega_des -
+        k (theta_pelvis - theta_des), theta_des, omega_des, alpha_des from the reference's ``phi_pitch``
+        (or 0: a level pelvis); and its rate, -(alpha_des - k (omega_pelvis - omega_des)) * sum_i I_i
+        (H_pitch is conserved in flight; the change of sum_i I_i is left out).  Returns (value, rate)."""
+        dyn = self.dyn
+        H_pitch = float(dyn.Ag[4] @ dyn.v)
+        th_des, om_des, al_des = (float(x) for x in smp.get("phi_pitch", (0.0, 0.0, 0.0)))
+        k = self.cfg.k_theta
+        I = self._rest_inertia()
+        b = self.o_Hfw._base_v
+        w_p = float(dyn.data.oMi[dyn.base_jid].rotation[1] @ dyn.v[b + 3:b + 6])
+        value = H_pitch - (om_des - k * (pitch - th_des)) * I
+        rate = -(al_des - k * (w_p - om_des)) * I
+        return np.array([value]), np.array([rate])
