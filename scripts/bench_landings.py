@@ -26,7 +26,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 from flip_tools.flip_request import request_distance
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
-from flip_tools.summary import LANDING_CRITERIA  # noqa: F401
+from flip_tools.summary import LANDING_CRITERIA, RPM_PER_RADPS  # noqa: F401
+from flip_tools.tracking import peak_abs
 
 #: start times of the jump (s): 0.3, 0.4, ..., 3.2 (the robot has stood that long; 30 of them)
 START_TIMES = tuple(round(0.3 + 0.1 * i, 1) for i in range(30))
@@ -76,9 +77,9 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     # the flywheel's peak speed (rpm) in the flight and in the landing (issue 22: the landing's at most the flight's)
     out["fw_peak_rpm"] = None
     if td is not None:
-        t, w = r["t"], np.abs(r["fw"]) * 30.0 / math.pi
-        fl, ld = w[(t >= lo) & (t < td)], w[t >= td]
-        out["fw_peak_rpm"] = (float(fl.max()) if fl.size else None, float(ld.max()) if ld.size else None)
+        # over the same spans as summary.json's flight_/landing_peak_flywheel_rpm
+        w = np.asarray(r["fw"]) * RPM_PER_RADPS
+        out["fw_peak_rpm"] = (peak_abs(r["t"], w, lo, td), peak_abs(r["t"], w, td, float(r["t"][-1])))
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     out["landed"] = outcome(r, kind) == "landed"
     return out

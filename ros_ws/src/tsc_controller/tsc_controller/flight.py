@@ -89,7 +89,7 @@ class Flight:
                     f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
                 th_T = f["th_T"]
                 R = dyn.data.oMi[dyn.base_jid].rotation
-                w_p = float(R[1] @ dyn.v[self.o_Hfw._base_v + 3:self.o_Hfw._base_v + 6])
+                w_p = self._pelvis_pitch_rate()
                 # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
                 # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
                 # against ~80 rad/s^2) and land with the feet far ahead
@@ -123,8 +123,11 @@ class Flight:
         th_des, om_des, al_des = (float(x) for x in smp.get("phi_pitch", (0.0, 0.0, 0.0)))
         k = self.cfg.k_theta
         I = self._rest_inertia()
-        b = self.o_Hfw._base_v
-        w_p = float(dyn.data.oMi[dyn.base_jid].rotation[1] @ dyn.v[b + 3:b + 6])
         value = H_pitch - (om_des - k * (pitch - th_des)) * I
-        rate = -(al_des - k * (w_p - om_des)) * I
+        rate = -(al_des - k * (self._pelvis_pitch_rate() - om_des)) * I
         return np.array([value]), np.array([rate])
+
+    def _pelvis_pitch_rate(self):
+        """World-y component of the pelvis's angular velocity (rad/s; the base velocity is local)."""
+        dyn, b = self.dyn, self.o_Hfw._base_v
+        return float(dyn.data.oMi[dyn.base_jid].rotation[1] @ dyn.v[b + 3:b + 6])
