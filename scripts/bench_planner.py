@@ -2,7 +2,8 @@
 """Planner timing: cold jumping solves (median over --cold runs, a fresh initial guess each time; the
 NLP is built once per process and reused, its build time reported separately) for backflip,
 frontflip (--distance 1.0) and hop, and warm landing re-solves (median over --warm perturbed
-post-impact states, warm-started from the nominal touch-down solution).
+post-impact states, each warm-started from the nearest state solved before: the nominal touch-down's
+and the earlier perturbed ones).
 
     .venv/bin/python scripts/bench_planner.py [--flywheel I] [--motor-speed-scale X] [--flywheel-torque NM]
         [--apex M] [--platform M] [--cold 5] [--warm 10]

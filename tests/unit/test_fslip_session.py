@@ -383,3 +383,30 @@ def test_a_robot_that_does_not_stand_is_refused(what, kw, words):
     # the same session plans once the robot stands
     ok = s.jumping_reference(_pelvis(s.robot, ground=FLIP["platform_height"]))
     assert ok.column("x_com")[0][0] == pytest.approx(s.robot.com_in_pelvis[0], abs=1e-12)
+
+
+def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
+    """At lift-off the planner solves the landings the measured lift-off predicts (predict_landing:
+    ẋ and H kept, ż from the fall, the mirrored lean and shifts of it), and the touch-down's re-solve
+    starts from the nearest of them: from a backflip's measured lift-off (ż 3.16 m/s against 2.31
+    planned) to a touch-down 0.09 m behind the feet, it converges in well under the iterations of a
+    cold solve of the same state (measured 14 against 25; from the plan's nominal prediction alone,
+    28)."""
+    s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
+    s.jumping_reference()
+    s.started(1.0)
+    lift_off = P.MeasuredState(2.0, np.array([0.0, 0.0, 1.0]), np.array([0.21, 0.0, 3.16]), -38.5, -0.05, 0.0,
+                               support_center=np.array([0.05, 0.0, 0.0]))
+    assert s.flight_reference(lift_off) is not None
+    took = s.predict_landing(lift_off)
+    predicted = np.array([q[0] for q in s._landing._points[1:]])      # after the plan's nominal one
+    assert took is not None and len(predicted) >= 3
+    assert np.allclose(predicted[:, 2:], [0.21, -3.16, -38.5])
+    touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
+                                 support_center=np.array([0.086, 0.0, 0.0]))
+    ref = s.landing_reference(touch_down)
+    assert ref.figures["fallback"] == 0.0
+    x0 = s._touchdown_state(touch_down)
+    cold = LandingProblem(s.robot.params, s.robot.L0).solve(x0, warm=False)
+    assert ref.figures["iterations"] <= 0.75 * cold.iterations
+    assert s.predict_landing(touch_down) is None          # nothing to predict once it has landed

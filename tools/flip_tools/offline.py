@@ -114,6 +114,28 @@ def _log_sample(log: dict, sim: Simulator, ctl: Controller, info: dict, fw_dof: 
     log["ang_speed"].append(math.hypot(*ang))
 
 
+def _replan(kind, st, t_ev, session, ctl, turns, log, landing_reference=True):
+    """A contact event's re-plan, as planner_node makes it: the flight reference at a lift-off (then the
+    landings it predicts), the landing re-solve at a touch-down (given to the controller only with
+    ``landing_reference``)."""
+    r = None
+    if kind == 0:
+        r = session.flight_reference(st)
+    elif kind == 1:
+        r = session.landing_reference(st)
+        if not landing_reference:
+            r = None
+    if r is not None:
+        if r.domain == FLIGHT:
+            turns.shift_flight(r)
+        log["references"].append((t_ev, r))
+        ctl.set_reference(to_sampled(r, t_ev))
+    if kind == 0:
+        session.predict_landing(st)
+    elif kind == 1:
+        turns.touch_down(st.pelvis_pitch)
+
+
 def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, every=20, landing_reference=True,
         node_state=False, x_start=None, heading=None, on_step=None, plant=None, turns=None, **request):
     """Run one flip; returns a log dict of arrays sampled every ``every`` steps plus events.
@@ -164,20 +186,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
                 plant.on_event(ev)
             st = measured(sim, t_ev)
             log["event_states"].append((int(ev.kind), st))
-            r = None
-            if int(ev.kind) == 0:
-                r = session.flight_reference(st)
-            elif int(ev.kind) == 1:
-                r = session.landing_reference(st)
-                if not landing_reference:
-                    r = None
-            if r is not None:
-                if r.domain == FLIGHT:
-                    turns.shift_flight(r)
-                log["references"].append((t_ev, r))
-                ctl.set_reference(to_sampled(r, t_ev))
-            if int(ev.kind) == 1:
-                turns.touch_down(st.pelvis_pitch)
+            _replan(int(ev.kind), st, t_ev, session, ctl, turns, log, landing_reference)
         q, v = read_state(sim)
         u, info = ctl.compute(q, v, stamp(sim))
         if on_step is not None:

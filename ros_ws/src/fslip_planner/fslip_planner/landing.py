@@ -13,7 +13,8 @@ stands up, it does not jump again (see the constant).
 under-rotated flip with a fast-spinning flywheel) drops H_N = 0: the flywheel keeps its momentum.
 
 The Opti object is kept: :meth:`LandingProblem.solve` sets the parameter, warm-starts IPOPT from the
-previous primal/dual solution and re-solves (a few iterations when the state is near the last one).
+primal/dual solution of the nearest state solved before (:data:`WARM_POINTS` kept; the planner solves
+the touch-downs a lift-off predicts during the flight) and re-solves.
 """
 from __future__ import annotations
 
@@ -38,11 +39,22 @@ N_KNOTS = 40
 #: leave the ground (the "rebound" fallback in most landings of flip C and D; docs/measurements.md).
 RISE_RESTITUTION = 0.2
 RISE_FLOOR = 0.2
+#: warm starts from a solved neighbour: barrier and bound pushes at 1e-3 (at 1e-6 a neighbour 0.05–0.14 m
+#: away in lean took 35–60 iterations, more than a cold solve's ~25; at 1e-3, 15–18); at most
+#: 60 iterations (at 30, flip C's re-solves fell back to cold ones, which landed worse)
 WARM_OPTS = dict(Jm.IPOPT_OPTS)
-WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-6,
-                  "ipopt.warm_start_mult_bound_push": 1e-6, "ipopt.mu_init": 1e-4,
-                  "ipopt.warm_start_slack_bound_push": 1e-6, "ipopt.mu_strategy": "monotone",
+WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-3,
+                  "ipopt.warm_start_mult_bound_push": 1e-3, "ipopt.mu_init": 1e-3,
+                  "ipopt.warm_start_slack_bound_push": 1e-3, "ipopt.mu_strategy": "monotone",
                   "ipopt.max_iter": 60, "ipopt.tol": 1e-5})
+#: solved states kept as warm starts, and the scale of each state component [x, z, ẋ, ż, H] in the
+#: distance that picks the nearest (a 0.05 m lean, a 0.2 m/s speed, 2 kg m^2/s weigh alike)
+WARM_POINTS = 8
+WARM_SCALE = np.array([0.05, 0.05, 0.2, 0.2, 2.0])
+#: COM − foot shifts (m) of the touch-downs a lift-off predicts around the mirrored lean
+#: (:func:`predicted_touchdowns`): measured touch-downs came 0.17 m behind to 0.08 m ahead of it, and a
+#: warm start 0.05 m away takes ~15 IPOPT iterations, 0.14 m away as many as a cold one
+PREDICTED_LEAN_SHIFTS = (0.0, -0.05, -0.1, -0.15, 0.05)
 COLD_OPTS = dict(Jm.IPOPT_OPTS)
 COLD_OPTS.update({"ipopt.max_iter": 300})
 
@@ -82,7 +94,7 @@ class LandingProblem:
         self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, COLD_OPTS)
         self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, WARM_OPTS)
         self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
-        self._last = None
+        self._points = []         # (x0, primal, dual g, dual x) of the latest solves, newest last
 
     def _initial_guess(self, x0):
         s = np.linspace(0, 1, self.N)
@@ -94,11 +106,13 @@ class LandingProblem:
         return np.r_[Xg.ravel(), Usg.T.ravel(), 0.7]
 
     def solve(self, x0, warm=True) -> Jm.Solution:
-        """Solve from the post-impact FSLIP state x0 = [x, z, ẋ, ż, H] (foot at the origin)."""
+        """Solve from the post-impact FSLIP state x0 = [x, z, ẋ, ż, H] (foot at the origin); ``warm``:
+        from the nearest state solved before (cold if none)."""
         t0 = time.perf_counter()
         x0 = np.asarray(x0, float)
-        if warm and self._last is not None:
-            xv, lam_g, lam_x = self._last
+        if warm and self._points:
+            _, xv, lam_g, lam_x = min(self._points,
+                                      key=lambda q: float(np.sum(((q[0] - x0) / WARM_SCALE) ** 2)))
             lbg, ubg = self._bounds(x0)
             res = self.warm(x0=xv, lam_g0=lam_g, lam_x0=lam_x, p=x0, lbg=lbg, ubg=ubg)
             stats = self.warm.stats()
@@ -108,7 +122,7 @@ class LandingProblem:
             stats = self.cold.stats()
         if not stats.get("success", False):
             raise RuntimeError(f"IPOPT (landing): {stats.get('return_status')}")
-        self._last = (res["x"], res["lam_g"], res["lam_x"])
+        self._points = (self._points + [(x0, res["x"], res["lam_g"], res["lam_x"])])[-WARM_POINTS:]
         X, U, T = (np.array(v) for v in self._unpack(res["x"]))
         return _solution(X.T, U.T, float(np.ravel(T)[0]), self.p, t0, stats)
 
@@ -119,3 +133,17 @@ def _solution(X, U, T, p, t0, stats) -> Jm.Solution:
     g = np.array([[float(v) for v in F.grf(X[k], U[k], p)] for k in range(N)])
     return Jm.Solution(np.linspace(0, T, N), X, U, L, g[:, 0], g[:, 1], time.perf_counter() - t0,
                        int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)
+
+
+def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PREDICTED_LEAN_SHIFTS):
+    """FSLIP touch-down states [x, z, ẋ, ż, H] a measured lift-off predicts: ẋ and the pitch momentum H
+    kept (conserved in flight), ż from the fall to a landing ground ``platform`` lower, and the lean of
+    ``mirrored`` (the lift-off's, mirrored by the foot placement) shifted by each of ``shifts`` on a leg
+    of the same length."""
+    r = float(np.hypot(mirrored[0], mirrored[1]))
+    zd = -np.sqrt(max(float(com_velocity[2]), 0.0) ** 2 + 2 * F.G * platform)
+    out = []
+    for dx in shifts:
+        x = float(mirrored[0]) + dx
+        out.append(np.array([x, np.sqrt(max(r * r - x * x, 0.0)), float(com_velocity[0]), zd, float(momentum)]))
+    return out

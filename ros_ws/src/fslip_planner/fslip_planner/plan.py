@@ -24,7 +24,7 @@ from . import jumping as Jm
 from .feasibility import (InfeasibleRequest, check_flight, com_of_standing, max_vertical_jump, precheck,
                           rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
 from .heading_frame import HeadingFrame
-from .landing import LandingProblem
+from .landing import LandingProblem, predicted_touchdowns
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -336,6 +336,28 @@ class FlipSession:
             self._landing.solve(self._touchdown_state(None), warm=False)
         except RuntimeError:
             pass   # the measured touch-down will be solved cold
+
+    def predict_landing(self, state: MeasuredState) -> Optional[float]:
+        """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
+        (:func:`landing.predicted_touchdowns` around the mirrored lean), each warm from the nearest
+        solved, so that the touch-down's warm re-solve (§III-C) starts next to its answer.  Run after the
+        flight reference is out (the planner has the flight's time); returns the time spent (s), None
+        when there is nothing to predict."""
+        _check_state(state)
+        if self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted:
+            return None
+        if self.heading is not None:
+            state = self.heading.measured(state)
+        if self._landing is None:
+            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+        t0 = time.perf_counter()
+        for x0 in predicted_touchdowns(self._touchdown_state(None), state.com_velocity, state.pitch_momentum,
+                                       self.platform):
+            try:
+                self._landing.solve(x0, warm=True)
+            except RuntimeError:
+                pass                  # the touch-down starts from the other predictions
+        return time.perf_counter() - t0
 
     def _touchdown_state(self, state: Optional[MeasuredState]):
         """FSLIP state [x, z, ẋ, ż, H] at touch-down: the predicted one (``state`` None: the lift-off

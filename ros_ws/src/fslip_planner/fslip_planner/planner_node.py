@@ -327,6 +327,12 @@ class PlannerNode:
                                    if ev.event == ContactEvent.LIFT_OFF else None)
         if ev.event == ContactEvent.TOUCH_DOWN:
             self.turns.touch_down(state.pelvis_pitch)
+        elif ref is not None:
+            # the flight reference is out (the simulator holds for it alone): solve the landings this
+            # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer
+            took = self.session.predict_landing(state)
+            if took is not None:
+                self.node.get_logger().info(f'landing predicted from the lift-off in {1e3 * took:.1f} ms')
 
 
 def main(args=None):
