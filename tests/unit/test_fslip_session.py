@@ -398,6 +398,8 @@ def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
     lift_off = P.MeasuredState(2.0, np.array([0.0, 0.0, 1.0]), np.array([0.21, 0.0, 3.16]), -38.5, -0.05, 0.0,
                                support_center=np.array([0.05, 0.0, 0.0]))
     assert s.flight_reference(lift_off) is not None
+    assert s.predict_landing(lift_off, stop=lambda: True) is not None
+    assert len(s._landing._points) == 1                   # stopped: the plan's nominal touch-down only
     took = s.predict_landing(lift_off)
     predicted = np.array([q[0] for q in s._landing._points[1:]])      # after the plan's nominal one
     assert took is not None and len(predicted) >= 3

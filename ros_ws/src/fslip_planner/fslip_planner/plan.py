@@ -337,12 +337,13 @@ class FlipSession:
         except RuntimeError:
             pass   # the measured touch-down will be solved cold
 
-    def predict_landing(self, state: MeasuredState) -> Optional[float]:
+    def predict_landing(self, state: MeasuredState, stop=None) -> Optional[float]:
         """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
         (:func:`landing.predicted_touchdowns` around the mirrored lean), each warm from the nearest
         solved, so that the touch-down's warm re-solve (§III-C) starts next to its answer.  Run after the
-        flight reference is out (the planner has the flight's time); returns the time spent (s), None
-        when there is nothing to predict."""
+        flight reference is out (the planner has the flight's time); ``stop()``, asked before each
+        solve, ends it early (the touch-down is near).  Returns the time spent (s), None when there is
+        nothing to predict."""
         _check_state(state)
         if self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted:
             return None
@@ -353,6 +354,8 @@ class FlipSession:
         t0 = time.perf_counter()
         for x0 in predicted_touchdowns(self._touchdown_state(None), state.com_velocity, state.pitch_momentum,
                                        self.platform):
+            if stop is not None and stop():
+                break
             try:
                 self._landing.solve(x0, warm=True)
             except RuntimeError:

@@ -45,6 +45,8 @@ KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP
 START_LEAD_S = 0.25
 #: wall seconds a request waits for the simulator's /odom (the measured state a plan starts from)
 STATE_TIMEOUT_S = 2.0
+#: share of the planned flight (sim time) during which the landings a lift-off predicts are solved
+PREDICT_FLIGHT_SHARE = 0.8
 #: /fslip/com_path and /fslip/targets: the newest, to a viewer that comes later too
 VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -329,8 +331,10 @@ class PlannerNode:
             self.turns.touch_down(state.pelvis_pitch)
         elif ref is not None:
             # the flight reference is out (the simulator holds for it alone): solve the landings this
-            # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer
-            took = self.session.predict_landing(state)
+            # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer;
+            # stopped after PREDICT_FLIGHT_SHARE of the planned flight in sim time (a touch-down waits for it)
+            end = state.t + PREDICT_FLIGHT_SHARE * float(ref.parameters.get('flight_time', 0.0))
+            took = self.session.predict_landing(state, stop=lambda: self._sim_now() >= end)
             if took is not None:
                 self.node.get_logger().info(f'landing predicted from the lift-off in {1e3 * took:.1f} ms')
 
