@@ -427,8 +427,9 @@ class FlipSession:
     def landing_reference(self, state: MeasuredState) -> Optional[Reference]:
         """LANDING reference at TOUCH_DOWN (None if there was no lift-off of this flip).
 
-        Warm re-solve from the nominal touch-down solution; if IPOPT fails: cold, then with the
-        momentum left free (the flywheel keeps spinning), and as a last resort a blend to standing
+        Warm re-solve from the nearest touch-down solved before (the nominal one, those predicted at the
+        lift-off: predict_landing); if IPOPT fails: cold, then with the momentum left free (the flywheel
+        keeps spinning), and as a last resort a blend to standing
         (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out."""
         _check_state(state)
         if self.result is None or self.t_liftoff is None or state.t < self.t_liftoff:
