@@ -390,8 +390,8 @@ def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
     ẋ and H kept, ż from the fall, the mirrored lean and shifts of it), and the touch-down's re-solve
     starts from the nearest of them: from a backflip's measured lift-off (ż 3.16 m/s against 2.31
     planned) to a touch-down 0.09 m behind the feet, it converges in well under the iterations of a
-    cold solve of the same state (measured 14 against 25; from the plan's nominal prediction alone,
-    28)."""
+    cold solve of the same state (measured 15 against 28; from the plan's nominal prediction alone,
+    24–25)."""
     s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
     s.jumping_reference()
     s.started(1.0)

@@ -120,6 +120,12 @@ def leg_angle(X):
     return atan2(X[0], X[1])
 
 
+def touchdown_zdot(zdot, platform_height, g=G):
+    """Vertical speed at the touch-down of a ballistic flight from a lift-off at ż onto ground
+    ``platform_height`` lower, the COM as high above the feet as at the lift-off (negative: falling)."""
+    return -sqrt(zdot * zdot + 2.0 * g * platform_height)
+
+
 def flight_time(zdot, platform_height, g=G):
     """Ballistic flight time from lift-off (vertical speed ż) to a touch-down ``platform_height``
     lower with the same COM height relative to the feet (paper: T = 2ż/g on flat ground)."""

@@ -141,7 +141,7 @@ def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PRED
     ``mirrored`` (the lift-off's, mirrored by the foot placement) shifted by each of ``shifts`` on a leg
     of the same length."""
     r = float(np.hypot(mirrored[0], mirrored[1]))
-    zd = -np.sqrt(max(float(com_velocity[2]), 0.0) ** 2 + 2 * F.G * platform)
+    zd = float(F.touchdown_zdot(max(float(com_velocity[2]), 0.0), platform))
     out = []
     for dx in shifts:
         x = float(mirrored[0]) + dx

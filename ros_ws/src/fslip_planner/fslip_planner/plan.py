@@ -371,7 +371,7 @@ class FlipSession:
         r = math.hypot(lo["x"], lo["z"])
         b = lo["beta"]
         if state is None:
-            zd = -math.sqrt(lo["zdot"] ** 2 + 2 * F.G * self.platform)
+            zd = F.touchdown_zdot(lo["zdot"], self.platform)
             return np.array([-r * math.sin(b), r * math.cos(b), lo["xdot"], zd, lo["momentum"]])
         v = np.asarray(state.com_velocity, float)
         x = -r * math.sin(b)
