@@ -182,6 +182,15 @@ def test_the_stamp_of_a_per_step_message():
     assert header_stamp_ns(b"\x00\x01\x00\x00") is None
 
 
+def test_a_re_sent_state_is_forwarded_once_and_each_topic_in_order():
+    from flip_tools.live import NewSteps
+    steps = NewSteps()
+    # sim_node sends step 0's state three times while the graph matches, then steps on
+    got = [(t, ns) for t, ns in [("/odom", 0), ("/odom", 0), ("/clock", 0), ("/odom", 0), ("/odom", 5),
+                                 ("/clock", 5), ("/odom", 5), ("/odom", 10), ("/odom", 5)] if steps.fresh(t, ns)]
+    assert got == [("/odom", 0), ("/clock", 0), ("/odom", 5), ("/clock", 5), ("/odom", 10)]
+
+
 def test_binary_frames_other_than_messages_are_not_messages():
     assert parse_binary(bytes([0x02]) + (5).to_bytes(8, "little")) is None       # server time
     m = parse_binary(bytes([0x01]) + (7).to_bytes(4, "little") + (9).to_bytes(8, "little") + b"abc")

@@ -19,7 +19,8 @@
 - Time is sim time, as foxglove_bridge's use_sim_time gives it: a per-step message's log time is
   its header stamp, any other message's the newest sim time seen (/clock is read for it once the
   graph runs), so that plots run in sim seconds and the 3D view poses the robot with the /tf of
-  the moment. (A bag's log time is the wall-clock receive time instead.)
+  the moment. (A bag's log time is the wall-clock receive time instead.) A state sim_node sends
+  again (same stamp) is not forwarded twice (`NewSteps`).
 - Latched (transient-local) topics: the newest ``depth`` messages of each are kept and sent again
   whenever a client subscribes to its channel, so a client that connects late still gets the URDF,
   /tf_static, the plans and the contact events. (The SDK sends to every subscriber of a channel: a
@@ -62,6 +63,21 @@ def header_stamp_ns(raw: bytes) -> int | None:
         return None
     sec, nanosec = _STAMP.unpack_from(raw, 4)
     return sec * 1_000_000_000 + nanosec
+
+
+class NewSteps:
+    """Which per-step messages are news: a stamp newer than the topic's last one forwarded. sim_node
+    sends a state again (the same stamp, the same state) while the controller's command is missing,
+    as at the first step while the graph matches; a view shows each step once, in order."""
+
+    def __init__(self):
+        self.last: dict[str, int] = {}
+
+    def fresh(self, topic: str, ns: int) -> bool:
+        if ns <= self.last.get(topic, -1):
+            return False
+        self.last[topic] = ns
+        return True
 
 
 # --- arguments -----------------------------------------------------------------------------------

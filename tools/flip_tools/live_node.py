@@ -29,7 +29,7 @@ import sys
 import time
 
 from .live import (DEFAULT_PORT, LIVE_HOST, SERVING_PREFIX, STEP_STREAMS, STREAM_RATE_HZ, LiveServer, LiveTopics,
-                   header_stamp_ns, port_arg)
+                   NewSteps, header_stamp_ns, port_arg)
 from .rosenv import CONTRACT_TOPICS, message_class
 
 NODE_NAME = "flip_live"
@@ -54,6 +54,7 @@ class LiveBridge:
         self.grid_ns = int(round(1e9 / rate_hz)) if rate_hz > 0 else 0   # 0: every message
         self.sim_ns = 0                 # newest sim time seen: the log time of what has no stamp of its own
         self.topics = LiveTopics()
+        self.new_steps = NewSteps()     # a re-sent state (same stamp) forwarded once
         self.subs: dict[str, object] = {}
         self.unreadable: set[str] = set()
         for spec in CONTRACT_TOPICS.values():
@@ -126,6 +127,8 @@ class LiveBridge:
         for topic in STEP_STREAMS:
             sub = self.subs.get(topic)
             for ns, raw in (self._take_stamped(sub) if sub is not None else ()):
+                if not self.new_steps.fresh(topic, ns):
+                    continue
                 self.sim_ns = max(self.sim_ns, ns)
                 forward(topic, raw, ns)
                 n += 1
