@@ -100,3 +100,24 @@ def test_the_ladder_restarts_from_the_elastic_optimum_when_ipopt_fails(monkeypat
     r = P.plan_flip("backflip", apex_height=1.3, **SOMERSAULT)
     assert calls == [False, True] and r.figures["attempt"] == 1
     np.testing.assert_allclose(r.solution.X[-1], ref.solution.X[-1], rtol=1e-4, atol=1e-4)
+
+
+def test_a_flip_the_robot_could_not_land_is_refused_with_the_sink_it_can_take():
+    """Flip C on the paper's robot (the platform's 0.5 m make a flight the flywheel turns) touches down
+    sinking ~3.4 m/s, faster than the published knees brake: planned, it is refused with the largest sink a
+    landing plan exists from, the envelope named (it was accepted and fell in its landing); the same flip
+    on the somersault robot (3x leg speeds) keeps its landing plan, as flips A-D and the hop do."""
+    from fslip_planner.feasibility import LANDING_SINK_STEPS
+    for plan in (lambda: P.plan_flip("frontflip", platform_height=0.5, forward_distance=0.6),
+                 lambda: P.FlipSession("frontflip", platform_height=0.5, forward_distance=0.6).jumping_reference()):
+        with pytest.raises(InfeasibleRequest) as e:
+            plan()
+        msg = str(e.value)
+        assert e.value.limit == "knee torque–speed envelope (landing)", msg
+        sink = float(re.search(r"COM sink ([0-9.]+) m/s", msg).group(1))
+        most = float(re.search(r"exists from at most ≈([0-9.]+) m/s of sink", msg).group(1))
+        assert sink > 3.0 and 1.0 < most < sink - sink / 2 ** LANDING_SINK_STEPS, msg
+    s = P.FlipSession("frontflip", platform_height=0.5, forward_distance=0.6, apex_height=1.2, **SOMERSAULT)
+    s.jumping_reference()
+    assert s.result is not None and s._landing.has_solutions     # the nominal landing, a warm start later
+    P.plan_flip("hop")                                            # the paper's robot hops and lands

@@ -5,6 +5,7 @@ task beyond reach (paper §III-B constraints), and the flight the plan leaves (m
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from cassie_model.motor_limits import planning_fraction
@@ -180,6 +181,63 @@ def check_flight(kind, lift_off, omega0, T, p: F.FSLIPParams, I_fw, L_land):
             f"over by {need_tucked - p.tau_max:.0f} N·m (a higher apex gives a longer flight)",
             "flywheel torque (flight)")
     return flight_requirement(kind, lift_off, omega0, T, p, I_fw, L_land), need_tucked
+
+
+#: halvings of the touch-down sink speed searched for the largest one a landing plan exists from, when
+#: none exists from the predicted touch-down (each a landing solve, warm from the nearest solved)
+LANDING_SINK_STEPS = 5
+
+
+def _lands(problem, x0, zdot) -> bool:
+    """Does ``problem`` (a ``LandingProblem``) solve from ``x0`` with the sink speed ``zdot``: warm from the
+    nearest state it solved (a homotopy in the sink speed), else cold."""
+    x = np.r_[np.asarray(x0, float)[:3], zdot, float(x0[4])]
+    for warm in ((True, False) if problem.has_solutions else (False,)):
+        try:
+            problem.solve(x, warm=warm)
+            return True
+        except RuntimeError:
+            continue
+    return False
+
+
+def check_landing(x0, problems, p: F.FSLIPParams, L_stand: float):
+    """The landing (paper §III-C) from the touch-down ``x0`` a jumping plan predicts
+    (``landing.mirrored_touchdown``), solved cold by the first of ``problems`` (``LandingProblem``: the one
+    to rest, then the one leaving the flywheel its momentum) that can; that solution, or None when none
+    can but a landing plan exists from a sink speed within a bisection step of the predicted one (an
+    optimiser failure, not a verdict).  Otherwise the robot could not land the flip it would jump:
+    InfeasibleRequest with the largest touch-down sink speed a landing plan exists from (the momentum left
+    free; bisection) against the predicted one, naming the knee torque–speed envelope when the landing
+    exists without it."""
+    from .landing import LandingProblem
+    for prob in problems:
+        try:
+            return prob.solve(x0, warm=False)
+        except RuntimeError:
+            continue
+    x0 = np.asarray(x0, float)
+    sink = -float(x0[3])
+    free = LandingProblem(p, L_stand, free_momentum=True)
+    lo, hi = 0.0, sink
+    for _ in range(LANDING_SINK_STEPS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _lands(free, x0, -mid) else (lo, mid)
+    if hi == sink:
+        return None
+    what = (f"no landing plan from the touch-down this jump leads to (COM sink {sink:.2f} m/s, "
+            f"{abs(float(x0[4])):.0f} kg·m²/s of pitch momentum, COM {abs(float(x0[0])):.2f} m "
+            f"{'ahead of' if x0[0] >= 0 else 'behind'} the feet): "
+            f"a landing plan exists from at most ≈{lo:.2f} m/s of sink (over by {sink - lo:.2f} m/s; a lower "
+            f"apex or platform sinks slower)")
+    unbounded = LandingProblem(replace(p, knee_no_load_speed=math.inf), L_stand, free_momentum=True)
+    if math.isfinite(p.knee_no_load_speed) and _lands(unbounded, x0, -0.5 * sink) and _lands(unbounded, x0, -sink):
+        raise InfeasibleRequest(
+            f"{what}; the knees' torque–speed envelope binds (full torque up to half the no-load speed, "
+            f"{0.5 * p.knee_no_load_speed:.2f} rad/s; without it the landing exists)",
+            "knee torque–speed envelope (landing)")
+    raise InfeasibleRequest(f"{what}; it does not exist without the knee torque–speed envelope either "
+                            f"(leg force, leg length range, friction, ZMP, flywheel torque)", "landing")
 
 
 # ------------------------------------------------------------------------------- standing

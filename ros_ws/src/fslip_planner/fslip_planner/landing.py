@@ -18,12 +18,15 @@ the touch-downs a lift-off predicts during the flight) and re-solves.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
+from . import flight as Fl
 from . import fslip as F
 from . import jumping as Jm
+from .plan_types import Reference
 
 ALPHA = 1e-1
 # Landing duration bounds (s) and knots.  A somersault lands with up to ~50 kg·m²/s of pitch momentum,
@@ -96,6 +99,11 @@ class LandingProblem:
         self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
         self._points = []         # (x0, primal, dual g, dual x) of the latest solves, newest last
 
+    @property
+    def has_solutions(self) -> bool:
+        """Has a solve succeeded (a warm start exists)?"""
+        return bool(self._points)
+
     def _initial_guess(self, x0):
         s = np.linspace(0, 1, self.N)
         w = 3 * s ** 2 - 2 * s ** 3
@@ -135,6 +143,16 @@ def _solution(X, U, T, p, t0, stats) -> Jm.Solution:
                        int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)
 
 
+def mirrored_touchdown(lift_off, platform):
+    """The touch-down a jumping plan predicts, FSLIP [x, z, ẋ, ż, H] with the foot at the origin: the
+    lift-off's lean mirrored by the foot placement (§IV-B) on a leg of the lift-off length, ẋ and H kept
+    (conserved in flight), ż from the fall to a landing ground ``platform`` lower (``lift_off``: a
+    plan's ``PlanResult.lift_off``)."""
+    r, b = math.hypot(lift_off["x"], lift_off["z"]), lift_off["beta"]
+    zd = float(F.touchdown_zdot(lift_off["zdot"], platform))
+    return np.array([-r * math.sin(b), r * math.cos(b), lift_off["xdot"], zd, lift_off["momentum"]])
+
+
 def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PREDICTED_LEAN_SHIFTS):
     """FSLIP touch-down states [x, z, ẋ, ż, H] a measured lift-off predicts: ẋ and the pitch momentum H
     kept (conserved in flight), ż from the fall to a landing ground ``platform`` lower, and the lean of
@@ -147,3 +165,14 @@ def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PRED
         x = float(mirrored[0]) + dx
         out.append(np.array([x, np.sqrt(max(r * r - x * x, 0.0)), float(com_velocity[0]), zd, float(momentum)]))
     return out
+
+
+def blend_to_standing(x0, L_td, L_stand, foot_x, figures, domain, dt, T=1.0) -> Reference:
+    """Last-resort landing reference (no landing plan answered): momentum held, L and pelvis pitch
+    min-jerk to standing, COM x min-jerk to above the foot; sampled every ``dt``."""
+    t = np.linspace(0.0, T, int(round(T / dt)) + 1)
+    z = np.zeros_like(t)
+    cols = [(np.full_like(t, x0[4]), z, z), Fl.min_jerk(L_td, L_stand, T, t),
+            Fl.min_jerk(foot_x + x0[0], foot_x, T, t), Fl.min_jerk(math.atan2(x0[0], x0[1]), 0.0, T, t)]
+    V, D, DD = (np.column_stack([c[i] for c in cols]) for i in range(3))
+    return Reference(domain, t, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD, {}, figures)

@@ -21,10 +21,10 @@ import numpy as np
 from . import fslip as F
 from . import flight as Fl
 from . import jumping as Jm
-from .feasibility import (InfeasibleRequest, check_flight, com_of_standing, max_vertical_jump, precheck,
-                          rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
+from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of_standing, max_vertical_jump,
+                          precheck, rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
 from .heading_frame import HeadingFrame
-from .landing import LandingProblem, predicted_touchdowns
+from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -199,7 +199,7 @@ def _solve(kind, apex, distance, platform, robot: _Robot):
     p = robot.params
     precheck(kind, apex, distance, platform, p, robot.L0)
     task = Jm.JumpTask(kind, apex, distance, platform)
-    what = f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform {platform:.2f} m"
+    what = _what(kind, apex, distance, platform)
     try:
         sol = Jm.solve_jumping(task, p, robot.L0)
     except Jm.TaskUnreachable as e:
@@ -217,6 +217,18 @@ def _solve(kind, apex, distance, platform, robot: _Robot):
     except InfeasibleRequest as e:
         raise InfeasibleRequest(f"{what}: {e}", e.limit) from None
     return sol
+
+
+def _what(kind, apex, distance, platform):
+    return f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform {platform:.2f} m"
+
+
+def _check_landing(robot: _Robot, lift_off, kind, apex, distance, platform, problems):
+    """feasibility.check_landing from the touch-down the plan predicts, the refusal prefixed by the request."""
+    try:
+        return check_landing(mirrored_touchdown(lift_off, platform), problems, robot.params, robot.L0)
+    except InfeasibleRequest as e:
+        raise InfeasibleRequest(f"{_what(kind, apex, distance, platform)}: {e}", e.limit) from None
 
 
 def _figures(sol: Jm.Solution, robot: _Robot):
@@ -257,6 +269,8 @@ def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0,
     apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
     sol = _solve(kind, apex, dist, plat, robot)
     fig, lo = _figures(sol, robot)
+    _check_landing(robot, lo, kind, apex, dist, plat, (LandingProblem(robot.params, robot.L0),
+                                                       LandingProblem(robot.params, robot.L0, free_momentum=True)))
     req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel,
                motor_speed_scale=float(motor_speed_scale), flywheel_torque=float(robot.params.tau_max))
     return PlanResult(kind, req, sol, fig, lo)
@@ -316,8 +330,12 @@ class FlipSession:
         if self.result is None:
             sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot)
             fig, lo = _figures(sol, self.robot)
+            # the landing NLPs built now, and solved for the predicted touch-down (a warm start later);
+            # refused when the robot could not land from it
+            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+            _check_landing(self.robot, lo, self.kind, self.apex, self.distance, self.platform,
+                           (self._landing, self._free_landing()))
             self.result = PlanResult(self.kind, {}, sol, fig, lo)
-            self._prepare_landing()
         r = self.result
         # x_start and the heading frame: where and how the plans start (published, so that an offline
         # re-run starts there, to the bit)
@@ -326,16 +344,6 @@ class FlipSession:
             par.update(heading=self.heading.psi, heading_pivot_x=self.heading.pivot[0],
                        heading_pivot_y=self.heading.pivot[1])
         return ground_reference(JUMPING, r.solution, self.x_start, r.figures, par)
-
-    def _prepare_landing(self):
-        """Build the landing NLP and solve it for the predicted touch-down (warm start later)."""
-        p = self.robot.params
-        self._landing = LandingProblem(p, self.robot.L0)
-        self._free_landing()                        # fallback NLP, built now rather than at touch-down
-        try:
-            self._landing.solve(self._touchdown_state(None), warm=False)
-        except RuntimeError:
-            pass   # the measured touch-down will be solved cold
 
     def predict_landing(self, state: MeasuredState, stop=None) -> Optional[float]:
         """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
@@ -368,11 +376,9 @@ class FlipSession:
         (``support_center``; without it, the lift-off's lean mirrored).  The leg keeps the lift-off
         length r (FSLIP units): x = COM − foot (at most r sin MAX_TOUCHDOWN_LEAN), z = √(r² − x²)."""
         lo = self.result.lift_off
-        r = math.hypot(lo["x"], lo["z"])
-        b = lo["beta"]
         if state is None:
-            zd = F.touchdown_zdot(lo["zdot"], self.platform)
-            return np.array([-r * math.sin(b), r * math.cos(b), lo["xdot"], zd, lo["momentum"]])
+            return mirrored_touchdown(lo, self.platform)
+        r, b = math.hypot(lo["x"], lo["z"]), lo["beta"]
         v = np.asarray(state.com_velocity, float)
         x = -r * math.sin(b)
         if state.support_center is not None:
@@ -460,7 +466,7 @@ class FlipSession:
             ref = ground_reference(LANDING, sol, foot_x, fig)
         else:
             fig.update(solve_time=time.perf_counter() - t0, iterations=0, rotation_to_go=0.0, fallback=3.0)
-            ref = _blend_to_standing(x0, self.result.lift_off["L"], self.robot.L0, foot_x, fig)
+            ref = blend_to_standing(x0, self.result.lift_off["L"], self.robot.L0, foot_x, fig, LANDING, DT_SAMPLE)
         self.landing_end = self.t_touchdown + ref.duration
         return ref
 
@@ -479,17 +485,6 @@ class FlipSession:
         if self.t_touchdown is None:
             return t > self.t_liftoff + (self._flight_T or 0.0) + 2.0
         return False
-
-
-def _blend_to_standing(x0, L_td, L_stand, foot_x, figures, T=1.0):
-    """Last-resort LANDING reference: momentum held, L and pelvis pitch min-jerk to standing,
-    COM x min-jerk to above the foot."""
-    t = np.linspace(0.0, T, int(round(T / DT_SAMPLE)) + 1)
-    z = np.zeros_like(t)
-    cols = [(np.full_like(t, x0[4]), z, z), Fl.min_jerk(L_td, L_stand, T, t),
-            Fl.min_jerk(foot_x + x0[0], foot_x, T, t), Fl.min_jerk(math.atan2(x0[0], x0[1]), 0.0, T, t)]
-    V, D, DD = (np.column_stack([c[i] for c in cols]) for i in range(3))
-    return Reference(LANDING, t, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD, {}, figures)
 
 
 def _check_state(s: MeasuredState):
