@@ -5,7 +5,6 @@ task beyond reach (paper §III-B constraints), and the flight the plan leaves (m
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 from cassie_model.motor_limits import planning_fraction
@@ -201,36 +200,36 @@ def _lands(problem, x0, zdot) -> bool:
     return False
 
 
-def check_landing(x0, problems, p: F.FSLIPParams, L_stand: float):
+def check_landing(x0, rest, p: F.FSLIPParams, L_stand: float):
     """The landing (paper §III-C) from the touch-down ``x0`` a jumping plan predicts
-    (``landing.mirrored_touchdown``), solved cold by the first of ``problems`` (``LandingProblem``: the one
-    to rest, then the one leaving the flywheel its momentum) that can; that solution, or None when none
-    can but a landing plan exists from a sink speed within a bisection step of the predicted one (an
-    optimiser failure, not a verdict).  Otherwise the robot could not land the flip it would jump:
-    InfeasibleRequest with the largest touch-down sink speed a landing plan exists from (the momentum left
-    free; bisection) against the predicted one, naming the knee torque–speed envelope when the landing
+    (``landing.mirrored_touchdown``): ``rest`` (a ``LandingProblem``) solved cold, that solution.  When it
+    has none, the largest touch-down sink speed from which a landing plan with the momentum left free
+    exists (bisection, each solve warm from the nearest solved): None when a landing exists from within
+    a bisection step of the predicted sink, or from none at all (an optimiser failure, not a verdict: a
+    landing without sink exists), else the robot could not land the flip it would jump: InfeasibleRequest
+    with that sink against the predicted one, naming the knee torque–speed envelope when the landing
     exists without it."""
-    from .landing import LandingProblem
-    for prob in problems:
-        try:
-            return prob.solve(x0, warm=False)
-        except RuntimeError:
-            continue
+    from .landing import shared_problem
+    try:
+        return rest.solve(x0, warm=False)
+    except RuntimeError:
+        pass
     x0 = np.asarray(x0, float)
     sink = -float(x0[3])
-    free = LandingProblem(p, L_stand, free_momentum=True)
+    free, unbounded = (shared_problem(p, L_stand, name) for name in ("free", "unbounded"))
+    free.forget()
+    unbounded.forget()
     lo, hi = 0.0, sink
     for _ in range(LANDING_SINK_STEPS):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if _lands(free, x0, -mid) else (lo, mid)
-    if hi == sink:
+    if hi == sink or lo == 0.0:
         return None
     what = (f"no landing plan from the touch-down this jump leads to (COM sink {sink:.2f} m/s, "
             f"{abs(float(x0[4])):.0f} kg·m²/s of pitch momentum, COM {abs(float(x0[0])):.2f} m "
             f"{'ahead of' if x0[0] >= 0 else 'behind'} the feet): "
             f"a landing plan exists from at most ≈{lo:.2f} m/s of sink (over by {sink - lo:.2f} m/s; a lower "
             f"apex or platform sinks slower)")
-    unbounded = LandingProblem(replace(p, knee_no_load_speed=math.inf), L_stand, free_momentum=True)
     if math.isfinite(p.knee_no_load_speed) and _lands(unbounded, x0, -0.5 * sink) and _lands(unbounded, x0, -sink):
         raise InfeasibleRequest(
             f"{what}; the knees' torque–speed envelope binds (full torque up to half the no-load speed, "

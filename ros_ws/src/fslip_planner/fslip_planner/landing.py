@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -104,6 +105,10 @@ class LandingProblem:
         """Has a solve succeeded (a warm start exists)?"""
         return bool(self._points)
 
+    def forget(self):
+        """Drop the solutions kept as warm starts: the next solves depend on nothing solved before."""
+        self._points = []
+
     def _initial_guess(self, x0):
         s = np.linspace(0, 1, self.N)
         w = 3 * s ** 2 - 2 * s ** 3
@@ -133,6 +138,21 @@ class LandingProblem:
         self._points = (self._points + [(x0, res["x"], res["lam_g"], res["lam_x"])])[-WARM_POINTS:]
         X, U, T = (np.array(v) for v in self._unpack(res["x"]))
         return _solution(X.T, U.T, float(np.ravel(T)[0]), self.p, t0, stats)
+
+
+#: (id of the parameters, L_stand) -> (the parameters, kept alive; {name: LandingProblem})
+_SHARED: dict = {}
+
+
+def shared_problem(p: F.FSLIPParams, L_stand: float, name: str) -> LandingProblem:
+    """The landing NLP ``name`` of these parameters, built once (a build takes ~0.3 s) and shared: "rest",
+    "free" (the momentum left free) or "unbounded" (free, without the knee torque–speed envelope).  For
+    cold solves, or warm ones after :meth:`LandingProblem.forget`."""
+    entry = _SHARED.setdefault((id(p), float(L_stand)), (p, {}))[1]
+    if name not in entry:
+        q = replace(p, knee_no_load_speed=math.inf) if name == "unbounded" else p
+        entry[name] = LandingProblem(q, L_stand, free_momentum=name != "rest")
+    return entry[name]
 
 
 def _solution(X, U, T, p, t0, stats) -> Jm.Solution:

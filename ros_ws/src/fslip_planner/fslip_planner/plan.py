@@ -24,7 +24,7 @@ from . import jumping as Jm
 from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of_standing, max_vertical_jump,
                           precheck, rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
 from .heading_frame import HeadingFrame
-from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns
+from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, shared_problem
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -223,10 +223,10 @@ def _what(kind, apex, distance, platform):
     return f"{kind} apex {apex:.2f} m distance {distance:.2f} m platform {platform:.2f} m"
 
 
-def _check_landing(robot: _Robot, lift_off, kind, apex, distance, platform, problems):
+def _check_landing(robot: _Robot, lift_off, kind, apex, distance, platform, rest):
     """feasibility.check_landing from the touch-down the plan predicts, the refusal prefixed by the request."""
     try:
-        return check_landing(mirrored_touchdown(lift_off, platform), problems, robot.params, robot.L0)
+        return check_landing(mirrored_touchdown(lift_off, platform), rest, robot.params, robot.L0)
     except InfeasibleRequest as e:
         raise InfeasibleRequest(f"{_what(kind, apex, distance, platform)}: {e}", e.limit) from None
 
@@ -269,8 +269,7 @@ def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0,
     apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
     sol = _solve(kind, apex, dist, plat, robot)
     fig, lo = _figures(sol, robot)
-    _check_landing(robot, lo, kind, apex, dist, plat, (LandingProblem(robot.params, robot.L0),
-                                                       LandingProblem(robot.params, robot.L0, free_momentum=True)))
+    _check_landing(robot, lo, kind, apex, dist, plat, shared_problem(robot.params, robot.L0, "rest"))
     req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel,
                motor_speed_scale=float(motor_speed_scale), flywheel_torque=float(robot.params.tau_max))
     return PlanResult(kind, req, sol, fig, lo)
@@ -333,8 +332,8 @@ class FlipSession:
             # the landing NLPs built now, and solved for the predicted touch-down (a warm start later);
             # refused when the robot could not land from it
             self._landing = LandingProblem(self.robot.params, self.robot.L0)
-            _check_landing(self.robot, lo, self.kind, self.apex, self.distance, self.platform,
-                           (self._landing, self._free_landing()))
+            self._free_landing()                    # the touch-down's fallback NLP, built now
+            _check_landing(self.robot, lo, self.kind, self.apex, self.distance, self.platform, self._landing)
             self.result = PlanResult(self.kind, {}, sol, fig, lo)
         r = self.result
         # x_start and the heading frame: where and how the plans start (published, so that an offline
