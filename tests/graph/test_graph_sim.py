@@ -63,6 +63,32 @@ def test_lockstep_simulator_ignores_bad_commands_and_resends(ros_graph, sim_io, 
     assert m and int(m.group(1)) == 10 and int(m.group(2)) >= 3, log
 
 
+def test_a_held_lockstep_simulator_sends_nothing_before_its_release(ros_graph):
+    """sim_node in lockstep with ``hold:=true`` (as `flip` starts it): with every subscriber there it
+    still sends no state and no /clock until /sim/release is called (`flip` calls it once the
+    recorder reports its side of every per-step topic matched: a bag lost the first 0.29 s of
+    /joint_states when the simulator started on its own subscription counts), then runs its steps."""
+    import time
+    from flip_tools.launcher import ros_args
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import Trigger
+    tn = ros_graph.test_node
+    clock = tn.collect(Clock, "/clock", QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+    ros_graph.start("sim", [str(Path(sys.executable).parent / "sim_node")]
+                    + ros_args(params={"controller": "none", "duration": 0.01, "hold": True,
+                                       "min_subscribers": 0}), node_name="sim_node")
+    t_end = time.monotonic() + 3.0
+    tn.spin_until(lambda: time.monotonic() > t_end, timeout=10, what="3 s held")
+    assert clock == [] and ros_graph.launcher.procs["sim"].poll() is None
+    assert "held before step 0 until /sim/release" in (ros_graph.log_dir / "sim.log").read_text()
+    r = tn.call(Trigger, "/sim/release", Trigger.Request(), timeout=30)
+    assert r.success and r.message == "released: lockstep from step 0"
+    assert ros_graph.launcher.wait_exit("sim", 60) == 0
+    tn.spin_until(lambda: len(clock) > 0, timeout=10, what="/clock after the release")
+    assert "done: 20 steps" in (ros_graph.log_dir / "sim.log").read_text()
+
+
 def test_realtime_stand_runs_on_the_wall_clock_and_counts_late_commands(tmp_path):
     """`flip stand --mode realtime`: the simulator holds the robot at step 0 until the tool has seen
     the recorder match every topic and calls /sim/release (a reader matching the controller's

@@ -5,7 +5,8 @@ scripted flip when a FlipReference arrives (rotation = its rotation_to_go, fligh
 flight_time) and exits by itself once sim time reaches the `duration` parameter (re-read every
 step, so it can be set at run time).
 Like sim_node it holds the first step until /joint_states and /odom have `min_subscribers`
-subscribers (+1 with controller:=tsc) and /clock has `min_subscribers`.
+subscribers (+1 with controller:=tsc) and /clock has `min_subscribers`, and with `hold` until
+/sim/release is called.
 `outcome:=fall` ends the flip tilted 90 deg, low. Sim time advances `rate` x wall time."""
 import math
 import sys
@@ -20,6 +21,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 G = 9.81
 Z0 = 1.0
@@ -43,6 +45,8 @@ class FakeSim(Node):
             self.declare_parameter(k, v)
         self.declare_parameter("duration", 0.0)
         self.min_subscribers = self.declare_parameter("min_subscribers", 0).value
+        self.released = not self.declare_parameter("hold", False).value
+        self.create_service(Trigger, "/sim/release", self.on_release)
         self.started = False
         self.rate = self.declare_parameter("rate", 2.0).value
         self.dt = 0.005
@@ -63,6 +67,10 @@ class FakeSim(Node):
         self.events_sent = set()
         self.finished = False
         self.create_timer(self.dt / self.rate, self.tick)
+
+    def on_release(self, request, response):
+        self.released = response.success = True
+        return response
 
     def on_ref(self, m):
         if m.domain == FlipReference.DOMAIN_JUMPING and self.plan is None:
@@ -98,7 +106,7 @@ class FakeSim(Node):
         if not self.started:   # like sim_node: hold the first step until the subscribers are there
             ctl = self.get_parameter("controller").value == "tsc"
             need = self.min_subscribers + (1 if ctl else 0)
-            self.started = (self.p_js.get_subscription_count() >= need and
+            self.started = self.released and (self.p_js.get_subscription_count() >= need and
                             self.p_odom.get_subscription_count() >= need and
                             self.p_clock.get_subscription_count() >= self.min_subscribers)
             if not self.started:

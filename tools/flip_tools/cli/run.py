@@ -17,7 +17,7 @@ from .params import (SIM_MIN_SUBSCRIBERS, check_live_port, landing_ground_z, pla
                      scenario_params, sim_loop_params, takeoff_ground_z, tsc_params, wrench_params)
 from .progress import JUMP_ALLOWANCE_S, landing_end, wait_for_sim_end, wait_sim_time
 from .results import finish, print_summary
-from .services import call_request_flip, response_dict
+from .services import call_request_flip, call_trigger, response_dict
 
 #: the nodes of a flip's graph (the recorder is stopped after them)
 ROLES = ["state", "tsc", "planner", "sim"]
@@ -64,7 +64,9 @@ def run_setup(args) -> dict:
     # subscribed too
     # linger: at its end the sim keeps its publishers until stopped, which the tool does once the
     # recorder has all they sent
+    # hold: and before its first step until flip releases it, once the recorder reports its side matched
     sim_params = {"mode": "lockstep", "controller": "tsc", "min_subscribers": SIM_MIN_SUBSCRIBERS, "linger": True,
+                  "hold": True,
                   "duration": float(args.duration if args.duration else args.max_sim_time),
                   **robot_params(args), **scen, **plant_params(args), **sim_loop_params(args), **wrench_params(args)}
     planner_params = {**robot_params(args), "platform_height": float(args.platform or 0.0)}
@@ -94,6 +96,7 @@ def start_flip_graph(graph: Graph, args, run_info: dict) -> float:
         timeout=args.ready_timeout, launcher=graph.launcher)
     took += graph.wait_recorder_matched(["/clock", "/odom", "/joint_states", "/motor_command",
                                          "/robot_description_mjcf"], args.ready_timeout)
+    call_trigger(graph.watcher, "/sim/release", args.ready_timeout)
     graph.release_live()
     return took
 

@@ -45,8 +45,9 @@ def sim_setup(args, stand: bool) -> dict:
                   "min_subscribers": SIM_MIN_SUBSCRIBERS, "rcl_io": args.io == "rcl", "linger": True,
                   **robot_params(args), **scenario_params(args), **sim_loop_params(args),
                   **wrench_params(args)}
-    # realtime with a controller: the robot is held at step 0 until every reader has matched
-    if stand and args.mode == "realtime":
+    # held until every reader has matched on its side (the recorder reports it): lockstep before the
+    # first step, realtime with a controller at step 0
+    if args.mode == "lockstep" or stand:
         sim_params["hold"] = True
     return {"command": sys.argv, "kind": "stand" if stand else "sim", "sim_params": sim_params,
             "tsc_params": tsc_params(args) if stand else None,

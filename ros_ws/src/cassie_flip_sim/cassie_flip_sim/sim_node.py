@@ -23,9 +23,11 @@ released), which hands back to this loop whatever is not routine: a step with pr
 wait that got no command (a re-send, a reference, a wrong size, an interrupt), the run's end, and every 200 steps
 (services, and the stop's signal handler, which only Python runs: a stop ends the run at the next
 such return, at a step's end); ``compiled_loop:=false`` keeps every step in Python (the same messages).
-Modes: ``lockstep`` (default), ``realtime`` (the robot stays at step 0, its state re-sent, until the
-controller has answered it, and with ``hold:=true`` until ``/sim/release`` is called, as a robot
-leaves its gantry once its controller runs and the graph is up; then it steps on the wall clock
+Modes: ``lockstep`` (default; with ``hold:=true`` nothing is sent before ``/sim/release`` is called:
+``flip`` calls it once its recorder reports every per-step topic matched on the recorder's side, which
+the subscription counts the node sees do not tell), ``realtime`` (the robot stays at step 0, its state
+re-sent, until the controller has answered it, and with ``hold:=true`` until ``/sim/release`` is called,
+as a robot leaves its gantry once its controller runs and the graph is up; then it steps on the wall clock
 holding the latest command, counting late and missing ones; a silent controller gets motor
 damping), and ``controller:=none``
 (zero torques, no waiting).
@@ -126,8 +128,8 @@ class SimNode(SimPublishing, SimCommands):
         self.rcl_io = bool(_declare(n, 'rcl_io', True))
         # lockstep with rcl_io: the routine steps in C++ (_rcl_io.SimLoop; module doc); false: in Python
         self.compiled_loop = bool(_declare(n, 'compiled_loop', True))
-        # realtime: hold the robot at step 0 until /sim/release (an orchestrator releases it once
-        # every reader has matched: the graph's matching stalled deliveries for ~0.3 s)
+        # hold until /sim/release (an orchestrator releases it once every reader has matched: the graph's
+        # matching stalled deliveries for ~0.3 s): realtime at step 0, lockstep before it
         self.hold = bool(_declare(n, 'hold', False))
         self.released = not self.hold
         if self.mode not in ('lockstep', 'realtime'):
@@ -214,11 +216,23 @@ class SimNode(SimPublishing, SimCommands):
         return response
 
     def _on_release(self, request, response):
-        response.success = self.mode == 'realtime'
-        response.message = ('released: on the wall clock' if response.success
-                            else f'nothing to release in {self.mode} mode')
+        response.success = self.mode == 'realtime' or self.hold
+        response.message = ('released: on the wall clock' if self.mode == 'realtime' else
+                            'released: lockstep from step 0' if self.hold else
+                            f'nothing to release in {self.mode} mode without hold')
         self.released = True
         return response
+
+    def _wait_for_release(self):
+        """Lockstep with ``hold``: no state before /sim/release (module doc); False when stopped meanwhile."""
+        if self.mode != 'lockstep' or self.released:
+            return True
+        self.node.get_logger().info('held before step 0 until /sim/release')
+        while not self.released:
+            self.executor.spin_once(timeout_sec=0.01)
+            if not self._running():
+                return False
+        return True
 
     def _hold_at_start(self):
         """Realtime: step 0's command, the state re-sent until it comes and (``hold``) until
@@ -239,7 +253,7 @@ class SimNode(SimPublishing, SimCommands):
     # -- main loop ---------------------------------------------------------------------------
     def run(self):
         log = self.node.get_logger()
-        if not self._wait_for_subscribers():
+        if not self._wait_for_subscribers() or not self._wait_for_release():
             return 0
         n_steps = int(round(self.duration / self.dt)) if self.duration > 0 else None
         self._start_rcl_io()
