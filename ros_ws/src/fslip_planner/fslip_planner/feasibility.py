@@ -200,7 +200,7 @@ def _lands(problem, x0, zdot) -> bool:
     return False
 
 
-def check_landing(x0, rest, p: F.FSLIPParams, L_stand: float):
+def check_landing(x0, rest, L_stand: float):
     """The landing (paper §III-C) from the touch-down ``x0`` a jumping plan predicts
     (``landing.mirrored_touchdown``): ``rest`` (a ``LandingProblem``) solved cold, that solution.  When it
     has none, the largest touch-down sink speed from which a landing plan with the momentum left free
@@ -210,6 +210,7 @@ def check_landing(x0, rest, p: F.FSLIPParams, L_stand: float):
     with that sink against the predicted one, naming the knee torque–speed envelope when the landing
     exists without it."""
     from .landing import shared_problem
+    p = rest.p
     try:
         return rest.solve(x0, warm=False)
     except RuntimeError:

@@ -226,7 +226,7 @@ def _what(kind, apex, distance, platform):
 def _check_landing(robot: _Robot, lift_off, kind, apex, distance, platform, rest):
     """feasibility.check_landing from the touch-down the plan predicts, the refusal prefixed by the request."""
     try:
-        return check_landing(mirrored_touchdown(lift_off, platform), rest, robot.params, robot.L0)
+        return check_landing(mirrored_touchdown(lift_off, platform), rest, robot.L0)
     except InfeasibleRequest as e:
         raise InfeasibleRequest(f"{_what(kind, apex, distance, platform)}: {e}", e.limit) from None
 
@@ -375,11 +375,11 @@ class FlipSession:
         (``support_center``; without it, the lift-off's lean mirrored).  The leg keeps the lift-off
         length r (FSLIP units): x = COM − foot (at most r sin MAX_TOUCHDOWN_LEAN), z = √(r² − x²)."""
         lo = self.result.lift_off
+        mirrored = mirrored_touchdown(lo, self.platform)
         if state is None:
-            return mirrored_touchdown(lo, self.platform)
-        r, b = math.hypot(lo["x"], lo["z"]), lo["beta"]
+            return mirrored
+        r, x = math.hypot(lo["x"], lo["z"]), float(mirrored[0])
         v = np.asarray(state.com_velocity, float)
-        x = -r * math.sin(b)
         if state.support_center is not None:
             lim = r * math.sin(MAX_TOUCHDOWN_LEAN)
             x = min(lim, max(-lim, float(state.com[0]) - float(state.support_center[0])))
