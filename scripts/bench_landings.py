@@ -11,7 +11,10 @@ arrives while the robot stands), so the count is the offline estimate of a graph
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
         [--distance 0] [--platform 0 | --ground-offset 0] [--states]
 
-(defaults: the somersault robot of the README and the 15 start times of the README's tally).  Each row also gives
+(defaults: the somersault robot of the README and 30 start times).  A robot that has settled (from
+~1.3 s on) repeats its run from every later start time to the bit, so the count over start times
+weighs one run many times; ``--noise 1e-4`` (sensor noise, seeded per start time) makes the runs
+independent.  Each row also gives
 the planner's landing re-solve at touch-down (wall ms, IPOPT iterations, which attempt answered) and
 whether the controller's own landing replaced the tracked plan (a rebound, or no plan).
 """
@@ -36,7 +39,7 @@ EXPECTED = EXPECTED_TURN
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
         distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None,
-        heading: list | None = None) -> dict:
+        heading: list | None = None, noise: float = 0.0) -> dict:
     import numpy as np
 
     from flip_tools import offline as of
@@ -49,8 +52,12 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     sim = Simulator(scenario=scenario, motor_speed_scale=scale, flywheel_torque=torque)
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=scale, flywheel_torque=torque,
                      **config_overrides(controller))
+    plant = None
+    if noise:                                  # seeded by the start time: a row re-runs alike
+        from flip_tools.perturb import read_noise
+        plant = read_noise(sim, noise, round(start * 1e4), start)
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex, x_start=x_start,
-               heading=heading,
+               heading=heading, plant=plant,
                forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque)
     lo, td = lift_off_touch_down(r["events"])
     out = {"kind": kind, "start": start, "fell_at": r["fell"], "flight_s": None, "td_rotation_deg": None,
@@ -81,7 +88,8 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
         w = np.asarray(r["fw"]) * RPM_PER_RADPS
         out["fw_peak_rpm"] = (peak_abs(r["t"], w, lo, td), peak_abs(r["t"], w, td, float(r["t"][-1])))
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
-    out["landed"] = outcome(r, kind) == "landed"
+    # the verdict on the true pitch where the controller reads a noisy one (as flip sweep's)
+    out["landed"] = outcome(r, kind, pitch_end=None if plant is None else plant.pitch) == "landed"
     return out
 
 
@@ -127,7 +135,8 @@ def start_cell(start: float) -> str:
     return text + "0" * max(0, 2 - len(text.split(".")[1]))
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
+    """The command line, checked (argparse exits 2 on a bad one)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kinds", nargs="+", default=["backflip", "frontflip"], choices=sorted(EXPECTED))
     ap.add_argument("--starts", nargs="+", type=float, default=list(START_TIMES))
@@ -145,6 +154,10 @@ def main() -> int:
                     help="COM x the jump starts from (a run's summary.json planner.x_start_m; default: the initial one)")
     ap.add_argument("--heading", type=float, nargs=3, default=None, metavar=("PSI", "PIVOT_X", "PIVOT_Y"),
                     help="with --x-start: the heading frame the plans start in (a run's summary.json planner.heading)")
+    ap.add_argument("--noise", type=float, default=0.0,
+                    help="std of Gaussian noise on the joints and IMU the controller reads (rad, rad/s; flip sweep's "
+                         "joint_noise and imu_noise), seeded per start time: independent runs where a settled robot "
+                         "would repeat one run from every start time (e.g. 1e-4)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
@@ -152,7 +165,14 @@ def main() -> int:
     a = ap.parse_args()
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
+    if not (a.noise >= 0.0 and math.isfinite(a.noise)):
+        ap.error(f"--noise must be a finite std >= 0, not {a.noise}")
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
+    return a
+
+
+def main() -> int:
+    a = parse_args()
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     why = refusal(a)
@@ -162,12 +182,13 @@ def main() -> int:
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
-                            a.distance, a.platform, a.ground_offset, a.x_start, a.heading)
+                            a.distance, a.platform, a.ground_offset, a.x_start, a.heading, a.noise)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (flip_tools.offline): motor speed scale {a.motor_speed_scale}, flywheel "
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
-          f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}")
+          f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}, "
+          f"read noise {a.noise}")
     print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg "
           "| landing re-solve ms (iterations, attempt) | own landing | flywheel peak rpm: flight / landing |")
     print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------"

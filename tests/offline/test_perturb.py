@@ -120,6 +120,22 @@ def test_noise_is_on_what_the_controller_reads(knob):
     assert quiet.state_reader(sc.from_simulator, sc, sim) == sc.from_simulator
 
 
+def test_read_noise_alone_is_seeded_on_joints_and_imu_and_leaves_the_plant_as_it_is():
+    """perturb.read_noise (bench_landings.py --noise): noise on both readings, drawn from its seed,
+    nothing else of the plant changed (no push, no delay: the command passes as it is)."""
+    sim, ctl, _ = built("B")
+    sc = offline.StateConverter(ctl.dyn)
+    q0, v0 = sc.from_simulator(sim)
+    read = lambda seed: P.read_noise(sim, 1e-3, seed, 0.5).state_reader(sc.from_simulator, sc, sim)(sim)  # noqa: E731
+    q, v = read(3)
+    assert np.abs(v[6:] - v0[6:]).max() > 1e-4 and np.abs(v[3:6] - v0[3:6]).max() > 1e-4
+    assert np.abs(q[3:7] - q0[3:7]).max() > 1e-5 and not (q[:3] - q0[:3]).any()
+    assert np.array_equal(read(3)[1], v) and not np.array_equal(read(4)[1], v)
+    u = np.arange(11.0)
+    assert np.array_equal(P.read_noise(sim, 1e-3, 3, 0.5).command(sim, u), u)
+    assert P.read_noise(sim, 0.0, 3, 0.5).state_reader(sc.from_simulator, sc, sim) == sc.from_simulator
+
+
 @pytest.mark.parametrize("phase", ["stance", "flight"])
 def test_push_is_the_impulse_over_10_ms_at_its_phase(phase):
     sim, _, plant = built(push=6.0, push_phase=phase, start=0.1)

@@ -129,11 +129,13 @@ class Plant:
     edits made when it was built), sensor noise on the state the controller reads; and the true
     pelvis pitch, unwrapped every step (the verdict's, not the controller's noisy estimate)."""
 
-    def __init__(self, sample: Sample, rng: np.random.Generator, sim, perturbation: PlantPerturbation):
-        self.sample, self.rng = sample, rng
+    def __init__(self, rng: np.random.Generator, sim, perturbation: PlantPerturbation, start: float,
+                 joint_noise: float = 0.0, imu_noise: float = 0.0):
+        """``start``: the jump's start time (s); ``joint_noise``, ``imu_noise``: the knobs' read noise."""
+        self.rng = rng
         self.perturbation = perturbation
-        self.joint_noise, self.imu_noise = sample.knob("joint_noise"), sample.knob("imu_noise")
-        perturbation.jump_started(sample.knob("start"))
+        self.joint_noise, self.imu_noise = joint_noise, imu_noise
+        perturbation.jump_started(start)
         self.pelvis = sim._pelvis
         self.pitch, self._raw = 0.0, None
 
@@ -209,7 +211,16 @@ def build(sample: Sample):
     perturbation = PlantPerturbation(sim, plant_knobs(sample))
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=p["motor_speed_scale"],
                      flywheel_torque=p["flywheel_torque"])
-    return sim, ctl, Plant(sample, np.random.default_rng(sample.seed), sim, perturbation)
+    return sim, ctl, Plant(np.random.default_rng(sample.seed), sim, perturbation, sample.knob("start"),
+                           sample.knob("joint_noise"), sample.knob("imu_noise"))
+
+
+def read_noise(sim, std: float, seed: int, start: float) -> Plant:
+    """A plant that only adds Gaussian noise of ``std`` (rad, rad/s) to what the controller reads of
+    the joints and the IMU (the ``joint_noise`` and ``imu_noise`` knobs), seeded: without it, runs of
+    a settled robot from different start times repeat each other to the bit, and a tally over start
+    times counts one run many times (scripts/bench_landings.py --noise)."""
+    return Plant(np.random.default_rng(seed), sim, PlantPerturbation(sim, {}), start, std, std)
 
 
 def failed_result(sample: Sample, error: str | None, mode: str = "offline") -> dict:
