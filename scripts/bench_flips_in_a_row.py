@@ -18,7 +18,7 @@ GAP_S = 0.5
 
 
 def chain(kind: str, start: float, flips: int, seconds: float, scale: float, torque: float, apex: float,
-          controller: str = "") -> list[str]:
+          controller: str = "", noise: float = 0.0) -> list[str]:
     """The outcomes (flip_tools.offline.outcome) of up to ``flips`` flips in a row from ``start``."""
     from cassie_flip_sim.simulator import Simulator
     from cassie_model.model import export_mjcf
@@ -31,15 +31,21 @@ def chain(kind: str, start: float, flips: int, seconds: float, scale: float, tor
                      **config_overrides(controller))
     turns, t, out = None, start, []
     for i in range(flips):
+        plant = None
+        if noise:                          # seeded by the chain's start and the flip's number
+            from flip_tools.perturb import read_noise
+            plant = read_noise(sim, noise, round(start * 1e4) * 100 + i, t)
         try:
             r = of.run(kind, seconds=t + seconds, start=t, sim=sim, controller=ctl, every=20, turns=turns,
-                       apex_height=apex, motor_speed_scale=scale, flywheel_torque=torque)
+                       plant=plant, apex_height=apex, motor_speed_scale=scale, flywheel_torque=torque)
         except InfeasibleRequest as e:
             out.append(f"rejected ({e.limit})")
             break
         turns = r["turns"]
         # the pitch counts the turns of the flips before: judge this flip's own
-        out.append(of.outcome(r, kind, pitch_end=float(r["pitch"][-1]) - of.EXPECTED_TURN[kind] * i))
+        # (the plant's true pitch counts from this run's start: this flip's own turn)
+        own = float(r["pitch"][-1]) - of.EXPECTED_TURN[kind] * i if plant is None else plant.pitch
+        out.append(of.outcome(r, kind, pitch_end=own))
         if out[-1] != "landed":
             break
         t = sim.time + GAP_S
@@ -56,14 +62,19 @@ def main() -> int:
     ap.add_argument("--flywheel-torque", type=float, default=260.0)
     ap.add_argument("--apex", type=float, default=1.3)
     ap.add_argument("--controller", default="", help="ControllerConfig overrides, JSON (as flip run --controller)")
+    ap.add_argument("--noise", type=float, default=0.0,
+                    help="std of read noise on the joints and IMU (rad, rad/s; bench_landings.py --noise), seeded per "
+                         "chain and flip")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
+    if not (a.noise >= 0.0 and a.noise < float("inf")):
+        ap.error(f"--noise must be a finite std >= 0, not {a.noise}")
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]
     with ProcessPoolExecutor(a.jobs) as ex:
         futs = [ex.submit(chain, k, s, a.flips, a.seconds, a.motor_speed_scale, a.flywheel_torque, a.apex,
-                          a.controller)
+                          a.controller, a.noise)
                 for k, s in jobs]
         results = [f.result() for f in futs]
     print("| kind | first start (s) | " + " | ".join(f"flip {i + 1}" for i in range(a.flips)) + " |")
