@@ -42,8 +42,8 @@ def chain(kind: str, start: float, flips: int, seconds: float, scale: float, tor
             out.append(f"rejected ({e.limit})")
             break
         turns = r["turns"]
-        # the pitch counts the turns of the flips before: judge this flip's own
-        # (the plant's true pitch counts from this run's start: this flip's own turn)
+        # judge this flip's own turn: the controller's pitch counts the flips before, the plant's true
+        # pitch (with noise) counts from this run's start
         own = float(r["pitch"][-1]) - of.EXPECTED_TURN[kind] * i if plant is None else plant.pitch
         out.append(of.outcome(r, kind, pitch_end=own))
         if out[-1] != "landed":
@@ -67,8 +67,11 @@ def main() -> int:
                          "chain and flip")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
-    if not (a.noise >= 0.0 and a.noise < float("inf")):
-        ap.error(f"--noise must be a finite std >= 0, not {a.noise}")
+    from flip_tools.perturb import check_knobs
+    try:                                         # the sweep's own check of its noise knobs
+        check_knobs({"joint_noise": a.noise, "imu_noise": a.noise})
+    except ValueError as e:
+        ap.error(f"--noise: {e}")
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]

@@ -9,7 +9,7 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
-        [--distance 0] [--platform 0 | --ground-offset 0] [--states]
+        [--distance 0] [--platform 0 | --ground-offset 0] [--noise 0] [--states]
 
 (defaults: the somersault robot of the README and 30 start times).  A robot that has settled (from
 ~1.3 s on) repeats its run from every later start time to the bit, so the count over start times
@@ -28,6 +28,7 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 
 from flip_tools.flip_request import request_distance
+from flip_tools.perturb import check_knobs
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
 from flip_tools.summary import LANDING_CRITERIA, RPM_PER_RADPS  # noqa: F401
 from flip_tools.tracking import peak_abs
@@ -165,8 +166,10 @@ def parse_args() -> argparse.Namespace:
     a = ap.parse_args()
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
-    if not (a.noise >= 0.0 and math.isfinite(a.noise)):
-        ap.error(f"--noise must be a finite std >= 0, not {a.noise}")
+    try:                                         # the sweep's own check of its noise knobs
+        check_knobs({"joint_noise": a.noise, "imu_noise": a.noise})
+    except ValueError as e:
+        ap.error(f"--noise: {e}")
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
     return a
 
