@@ -7,7 +7,7 @@ import pytest
 from fslip_planner import flight as Fl
 
 from fslip_planner import plan as P
-from fslip_planner.landing import LandingProblem
+from fslip_planner.landing import PREDICTED_LEAN_SHIFTS, LandingProblem
 
 # flips of the somersault robot down from a 0.5 m platform (the published robot cannot turn a flip in
 # the flight its knees give it: tests/unit/test_fslip_feasibility.py)
@@ -412,3 +412,30 @@ def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
     cold = LandingProblem(s.robot.params, s.robot.L0).solve(x0, warm=False)
     assert ref.figures["iterations"] <= 0.75 * cold.iterations
     assert s.predict_landing(touch_down) is None          # nothing to predict once it has landed
+
+
+def test_the_touch_down_plan_does_not_depend_on_how_far_the_lift_off_prediction_got():
+    """planner_node stops the lift-off's prediction when the flight is nearly over in sim time, so on a
+    slower machine it solves fewer of the predicted touch-downs.  The touch-down solves those left first
+    (in the same order, from the same warm starts), so its plan is the same to the bit: a graph run and
+    its offline re-run (tests/graph/test_graph_flips.py) agree whatever the machine's speed."""
+    lift_off = P.MeasuredState(2.0, np.array([0.0, 0.0, 1.0]), np.array([0.21, 0.0, 3.16]), -38.5, -0.05, 0.0,
+                               support_center=np.array([0.05, 0.0, 0.0]))
+    touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
+                                 support_center=np.array([0.086, 0.0, 0.0]))
+    plans = []
+    for budget in (None, 1, 0):          # every prediction solved at the lift-off; one; none
+        s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
+        s.jumping_reference()
+        s.started(1.0)
+        s.flight_reference(lift_off)
+        asked = []
+        stop = None if budget is None else (lambda: asked.append(1) or len(asked) > budget)
+        s.predict_landing(lift_off, stop=stop)
+        plans.append(s.landing_reference(touch_down))
+    n = len(PREDICTED_LEAN_SHIFTS)
+    assert [p.figures["predictions_left"] for p in plans] == [0.0, n - 1.0, float(n)]
+    for p in plans[1:]:
+        assert p.figures["fallback"] == 0.0
+        np.testing.assert_array_equal(p.value, plans[0].value)
+        np.testing.assert_array_equal(p.t, plans[0].t)

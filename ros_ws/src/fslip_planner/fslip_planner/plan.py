@@ -1,13 +1,7 @@
 """Planner API used by ``planner_node`` and ``scripts/flip plan``: :class:`FlipSession`
 (jumping → flight → landing), :func:`plan_flip`, :class:`MeasuredState`, :class:`InfeasibleRequest`
-(the states and references defined in :mod:`plan_types`).
-
-FSLIP knots → robot outputs (paper §V-A, eq. Y^{J/L}): ``H_pitch`` = H (the FSLIP flywheel
-momentum I(L)θ̇ = whole-robot centroidal pitch momentum; d = τ, dd = τ̇), ``L`` = r + F^s/K
-(d = ṙ + ṡ, dd = r̈ + s̈ with ṙ, r̈ from the states and the dynamics, ṡ, s̈ by differences of the
-knot values), ``x_com`` = x + (the standing COM x measured when the flip is requested: the foot
-sits under the standing COM; d = ẋ, dd = ẍ from the dynamics), ``phi_pitch`` = β (the pelvis tracks the leg angle on the ground, §IV-A;
-β̇, β̈ analytic).  Knots are resampled every 2 ms (cubic Hermite on value/derivative pairs).
+(the states and references defined in :mod:`plan_types`; FSLIP knots to references in
+:mod:`ground_reference`).
 """
 from __future__ import annotations
 
@@ -23,6 +17,7 @@ from . import flight as Fl
 from . import jumping as Jm
 from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of_standing, max_vertical_jump,
                           precheck, rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
+from .ground_reference import DT_SAMPLE, ground_reference, knot_outputs, leg_offset
 from .heading_frame import HeadingFrame
 from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, shared_problem
 from .plan_types import MeasuredState, PelvisState, Reference
@@ -30,7 +25,6 @@ from .plan_types import MeasuredState, PelvisState, Reference
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
            "plan_flip", "default_apex", "standing_com_x"]
 
-DT_SAMPLE = 0.002
 #: a LIFT_OFF earlier than this fraction of the planned stance, or slower than this fraction of the
 #: planned lift-off ż, aborts the flip (the flight plan asks no rotation; see flight_reference)
 ABORT_STANCE_FRACTION = 0.5
@@ -93,70 +87,6 @@ def default_apex(flywheel="I", motor_speed_scale=1.0, flywheel_torque=None):
     """Default apex (m): the reachable maximum minus :data:`DEFAULT_APEX_MARGIN` (I: 1.05 m)."""
     p = _Robot.get(flywheel, motor_speed_scale, flywheel_torque).params
     return round(max_vertical_jump(p)[0] - DEFAULT_APEX_MARGIN, 2)
-
-
-# ------------------------------------------------------------------------------------------ knots
-def knot_outputs(sol: Jm.Solution):
-    """Per-knot (value, d, dd) of x, H, L, β from a solution (see module doc)."""
-    p, X, U, t = sol.params, sol.X, sol.U, sol.t
-    acc = np.array([F.dynamics_np(X[k], U[k], p) for k in range(len(t))])
-    x, z, xd, zd, H = X.T
-    xdd, zdd = acc[:, 2], acc[:, 3]
-    r = np.hypot(x, z)
-    rd = (x * xd + z * zd) / r
-    rdd = (xd ** 2 + zd ** 2 + x * xdd + z * zdd) / r - rd ** 2 / r
-    s = sol.L - r
-    sd = np.gradient(s, t)
-    sdd = np.gradient(sd, t)
-    tau = U[:, 1]
-    w = z * xd - x * zd
-    bd = w / r ** 2
-    bdd = (z * xdd - x * zdd) / r ** 2 - 2 * w * (x * xd + z * zd) / r ** 4
-    return {"x": (x, xd, xdd), "H": (H, tau, np.gradient(tau, t)), "L": (sol.L, rd + sd, rdd + sdd), "r_dot": (rd, rdd),
-            "beta": (np.arctan2(x, z), bd, bdd), "s": s, "acc": acc}
-
-
-def _resample(t, cols, dt=DT_SAMPLE):
-    """cols: list of (v, d, dd) on knots t → (tt, V, D, DD) sampled every dt: V and D from one
-    cubic Hermite spline through (v, d) (D is exactly V'), DD = derivative of the (d, dd) spline."""
-    from scipy.interpolate import CubicHermiteSpline
-    n = max(int(round(t[-1] / dt)), 1) + 1
-    tt = np.linspace(0.0, t[-1], n)
-    V, D, DD = (np.zeros((n, len(cols))) for _ in range(3))
-    for j, (v, d, dd) in enumerate(cols):
-        sv = CubicHermiteSpline(t, v, d)          # value and its exact derivative
-        V[:, j] = sv(tt)
-        D[:, j] = sv.derivative()(tt)
-        DD[:, j] = CubicHermiteSpline(t, d, dd).derivative()(tt)
-    return tt, V, D, DD
-
-
-def leg_offset(p, L_stand: float) -> float:
-    """A reference's leg length L minus the FSLIP's r: the robot's standing L minus the FSLIP's
-    standing r (see ground_reference)."""
-    return L_stand - float(F.static_state(p, L_stand)[0][1])
-
-
-def ground_reference(domain, sol: Jm.Solution, x_offset: float, figures=None, parameters=None):
-    """JUMPING / LANDING reference (H_pitch, L, x_com, phi_pitch) from FSLIP knots.
-
-    The robot's leg length (hip-pitch joint to foot joint, springs deflected as they are) hardly
-    changes with the load it carries (0.861 m unloaded, 0.864 m standing, measured), so it follows
-    the FSLIP's real leg length r, offset so that standing at rest maps to the robot's standing L;
-    the actuated length L = r + F^s/K would ask the robot to shorten its leg whenever the FSLIP
-    spring unloads.  Parameters ``leg_offset`` (that offset, m) and ``fslip_mass`` (kg) say how to
-    turn it back into the FSLIP's motion and force (plan_geometry; the controller does not read them)."""
-    o = knot_outputs(sol)
-    x, xd, xdd = o["x"]
-    p = sol.params
-    offset = leg_offset(p, _Robot.get_by_params(p).L0)
-    (r, rd, rdd) = (np.hypot(x, sol.X[:, 1]), ) + o["r_dot"]
-    cols = [o["H"], (r + offset, rd, rdd), (x + x_offset, xd, xdd), o["beta"]]
-    tt, V, D, DD = _resample(sol.t, cols)
-    params = dict(parameters or {})
-    params.update(leg_offset=offset, fslip_mass=float(p.m))
-    return Reference(domain, tt, ["H_pitch", "L", "x_com", "phi_pitch"], V, D, DD,
-                     params, dict(figures or {}))
 
 
 # ------------------------------------------------------------------------------------------ result
@@ -311,6 +241,7 @@ class FlipSession:
         self.t_start = self.t_liftoff = self.t_touchdown = None
         self.landing_end = None
         self._landing: Optional[LandingProblem] = None
+        self._predicted: list = []      # touch-downs predicted at the lift-off, not solved yet
         self._flight_T = None
         self.aborted = False
 
@@ -342,14 +273,15 @@ class FlipSession:
         if self.heading is not None:
             par.update(heading=self.heading.psi, heading_pivot_x=self.heading.pivot[0],
                        heading_pivot_y=self.heading.pivot[1])
-        return ground_reference(JUMPING, r.solution, self.x_start, r.figures, par)
+        return ground_reference(JUMPING, r.solution, self.x_start, self.robot.L0, r.figures, par)
 
     def predict_landing(self, state: MeasuredState, stop=None) -> Optional[float]:
         """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
-        (:func:`landing.predicted_touchdowns` around the mirrored lean), each warm from the nearest
-        solved, so that the touch-down's warm re-solve (§III-C) starts next to its answer.  Run after the
-        flight reference is out (the planner has the flight's time); ``stop()``, asked before each
-        solve, ends it early (the touch-down is near).  Returns the time spent (s), None when there is
+        (:func:`landing.predicted_touchdowns` around the mirrored lean), in order, each warm from the
+        nearest solved, so that the touch-down's warm re-solve (§III-C) starts next to its answer.  Run
+        after the flight reference is out; ``stop()``, asked before each solve, ends it early (the
+        touch-down is near): the touch-down solves the rest first (:meth:`landing_reference`), so that its
+        plan does not depend on how fast the machine is.  Returns the time spent (s), None when there is
         nothing to predict."""
         _check_state(state)
         if self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted:
@@ -359,15 +291,21 @@ class FlipSession:
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0)
         t0 = time.perf_counter()
-        for x0 in predicted_touchdowns(self._touchdown_state(None), state.com_velocity, state.pitch_momentum,
-                                       self.platform):
-            if stop is not None and stop():
-                break
+        self._predicted = predicted_touchdowns(self._touchdown_state(None), state.com_velocity,
+                                               state.pitch_momentum, self.platform)
+        self._solve_predicted(stop)
+        return time.perf_counter() - t0
+
+    def _solve_predicted(self, stop=None) -> int:
+        """Solve the predicted touch-downs not solved yet, in their order, until ``stop()``; how many."""
+        n = 0
+        while self._predicted and not (stop is not None and stop()):
+            x0, n = self._predicted.pop(0), n + 1
             try:
                 self._landing.solve(x0, warm=True)
             except RuntimeError:
                 pass                  # the touch-down starts from the other predictions
-        return time.perf_counter() - t0
+        return n
 
     def _touchdown_state(self, state: Optional[MeasuredState]):
         """FSLIP state [x, z, ẋ, ż, H] at touch-down: the predicted one (``state`` None: the lift-off
@@ -439,6 +377,8 @@ class FlipSession:
         _check_state(state)
         if self.result is None or self.t_liftoff is None or state.t < self.t_liftoff:
             return None
+        t_left = time.perf_counter()
+        left = self._solve_predicted()        # what the lift-off's prediction had no time for
         t0 = time.perf_counter()
         self.t_touchdown = float(state.t)
         if self.heading is not None:
@@ -448,6 +388,7 @@ class FlipSession:
         fig = dict(self.result.figures)
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0)
+        fig.update(predictions_left=float(left), predictions_left_time=t0 - t_left)
         sol, fallback = None, 0
         attempts = [(lambda: self._landing.solve(x0, warm=True)),
                     (lambda: self._landing.solve(x0, warm=False)),
@@ -462,7 +403,7 @@ class FlipSession:
             sol.solve_time = time.perf_counter() - t0
             fig.update(solve_time=sol.solve_time, iterations=sol.iterations, rotation_to_go=0.0,
                        fallback=float(fallback))
-            ref = ground_reference(LANDING, sol, foot_x, fig)
+            ref = ground_reference(LANDING, sol, foot_x, self.robot.L0, fig)
         else:
             fig.update(solve_time=time.perf_counter() - t0, iterations=0, rotation_to_go=0.0, fallback=3.0)
             ref = blend_to_standing(x0, self.result.lift_off["L"], self.robot.L0, foot_x, fig, LANDING, DT_SAMPLE)

@@ -329,6 +329,10 @@ class PlannerNode:
                                    if ev.event == ContactEvent.LIFT_OFF else None)
         if ev.event == ContactEvent.TOUCH_DOWN:
             self.turns.touch_down(state.pelvis_pitch)
+            if ref is not None and ref.figures.get('predictions_left'):
+                self.node.get_logger().info(
+                    f'{ref.figures["predictions_left"]:.0f} landing predictions left from the lift-off solved '
+                    f'at the touch-down first, in {1e3 * ref.figures["predictions_left_time"]:.1f} ms')
         elif ref is not None:
             # the flight reference is out (the simulator holds for it alone): solve the landings this
             # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer;
