@@ -439,3 +439,17 @@ def test_the_touch_down_plan_does_not_depend_on_how_far_the_lift_off_prediction_
         assert p.figures["fallback"] == 0.0
         np.testing.assert_array_equal(p.value, plans[0].value)
         np.testing.assert_array_equal(p.t, plans[0].t)
+
+
+def test_a_flight_the_flywheel_cannot_turn_is_refused_unless_the_design_study_turns_the_check_off():
+    """The planner refuses a jump whose planned flight needs more flywheel torque than the motor gives
+    (feasibility.check_flight); ``flight_check=False`` (scripts/bench_landings.py --no-flight-check) plans
+    it and reports what the flight needs."""
+    kw = dict(apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=195.0)
+    with pytest.raises(P.InfeasibleRequest) as e:
+        P.FlipSession("backflip", **kw).jumping_reference()
+    assert e.value.limit == "flywheel torque (flight)"
+    s = P.FlipSession("backflip", flight_check=False, **kw)
+    assert s.jumping_reference().domain == P.JUMPING
+    assert s.result.figures["flight_torque_needed_tucked"] > 195.0
+    assert s.result.figures["flight_torque_needed"] >= s.result.figures["flight_torque_needed_tucked"]

@@ -15,8 +15,9 @@ import numpy as np
 from . import fslip as F
 from . import flight as Fl
 from . import jumping as Jm
-from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of_standing, max_vertical_jump,
-                          precheck, rotation_xyzw, standing_com_x, unreachable_message, validate_inputs)
+from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of_standing, flight_requirement,
+                          max_vertical_jump, precheck, rotation_xyzw, standing_com_x, unreachable_message,
+                          validate_inputs)
 from .ground_reference import DT_SAMPLE, ground_reference, knot_outputs, leg_offset
 from .heading_frame import HeadingFrame
 from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, shared_problem
@@ -123,9 +124,10 @@ def _tolist(d):
     return d
 
 
-def _solve(kind, apex, distance, platform, robot: _Robot):
-    """The jumping plan of a request, checked for its flight; InfeasibleRequest naming the binding
-    limit otherwise."""
+def _solve(kind, apex, distance, platform, robot: _Robot, flight_check=True):
+    """The jumping plan of a request, checked for its flight (``flight_check`` False: the flywheel
+    torque its flight needs is reported, not enforced); InfeasibleRequest naming the binding limit
+    otherwise."""
     p = robot.params
     precheck(kind, apex, distance, platform, p, robot.L0)
     task = Jm.JumpTask(kind, apex, distance, platform)
@@ -140,12 +142,14 @@ def _solve(kind, apex, distance, platform, robot: _Robot):
     X = sol.X[-1]
     omega0 = float((X[1] * X[2] - X[0] * X[3]) / (X[0] ** 2 + X[1] ** 2))     # β̇ at lift-off
     lo = {"beta": float(sol.extra["beta"]), "L": float(sol.L[-1])}
+    flight = (kind, lo, omega0, float(sol.extra["flight_time"]), p, robot.I_fw, robot.L0 + LANDING_LEG_EXTENSION)
     try:
-        sol.extra["flight_torque_needed"], sol.extra["flight_torque_needed_tucked"] = check_flight(
-            kind, lo, omega0, float(sol.extra["flight_time"]), p, robot.I_fw,
-            robot.L0 + LANDING_LEG_EXTENSION)
+        need = check_flight(*flight)
     except InfeasibleRequest as e:
-        raise InfeasibleRequest(f"{what}: {e}", e.limit) from None
+        if flight_check:
+            raise InfeasibleRequest(f"{what}: {e}", e.limit) from None
+        need = flight_requirement(*flight), flight_requirement(*flight, tucked=True)
+    sol.extra["flight_torque_needed"], sol.extra["flight_torque_needed_tucked"] = need
     return sol
 
 
@@ -224,7 +228,9 @@ class FlipSession:
     GRACE = 0.5   # s after the planned end of a phase before the flip counts as abandoned
 
     def __init__(self, kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-                 motor_speed_scale=1.0, flywheel_torque=None):
+                 motor_speed_scale=1.0, flywheel_torque=None, flight_check=True):
+        """``flight_check`` False (design studies, ``scripts/bench_landings.py --no-flight-check``): a
+        jump whose planned flight needs more flywheel torque than the motor gives is not refused."""
         apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height,
                                            flywheel)
         _check_scale(motor_speed_scale)
@@ -234,6 +240,7 @@ class FlipSession:
         self.robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
         self.apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
         self.distance, self.platform = dist, plat
+        self.flight_check = bool(flight_check)
         self.result: Optional[PlanResult] = None
         self.x_start: Optional[float] = None      # COM x the jump starts from (heading frame)
         #: the frame of the pelvis at the request: the plans' x is along its heading (None: world)
@@ -258,7 +265,7 @@ class FlipSession:
                 if self.heading.psi != 0.0:        # the standing COM in that frame
                     self.x_start = float(self.heading.point(com_of_standing(state, self.robot))[0])
         if self.result is None:
-            sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot)
+            sol = _solve(self.kind, self.apex, self.distance, self.platform, self.robot, self.flight_check)
             fig, lo = _figures(sol, self.robot)
             # the landing NLPs built now, and solved for the predicted touch-down (a warm start later);
             # refused when the robot could not land from it
