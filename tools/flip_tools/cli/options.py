@@ -6,9 +6,10 @@ from flip_tools.flip_request import PLATFORM_FLIP_DISTANCE
 from .common import FINITE, NONNEGATIVE, POSITIVE, cpu_latency_arg
 
 
-def scenario_opts(sp, plan=False):
+def scenario_opts(sp, plan=False, flight_check=True):
     """The jump's request (distance, apex, platform; the landing ground's offset but in ``plan``'s
-    subcommands) and the robot."""
+    subcommands), the robot and (``flight_check``: the subcommands that start a planner)
+    --no-flight-check."""
     sp.add_argument("--distance", type=FINITE,
                     help=f"forward distance, m (default 0 = in place; {PLATFORM_FLIP_DISTANCE} with --platform)")
     sp.add_argument("--apex", type=NONNEGATIVE, help="COM apex above take-off ground, m (0 = default)")
@@ -16,6 +17,8 @@ def scenario_opts(sp, plan=False):
     if not plan:
         sp.add_argument("--ground-offset", type=FINITE, help="landing ground offset (scenario raised), m")
     robot_opts(sp)
+    if flight_check:
+        flight_check_opt(sp)
 
 
 def robot_opts(sp):
@@ -29,6 +32,14 @@ def robot_opts(sp):
                     help="leg motors' no-load speeds x this (default: the robot's; 1 = the published motors)")
     sp.add_argument("--flywheel-torque", type=POSITIVE, metavar="NM",
                     help="flywheel motor's torque limit, N*m (default: the robot's, 195)")
+
+
+def flight_check_opt(sp):
+    """--no-flight-check: the planner's flight-torque check off (a design study)."""
+    sp.add_argument("--no-flight-check", action="store_true",
+                    help="design study: the planner does not refuse a jump whose planned flight needs more "
+                         "flywheel torque than the motor gives (the robot may fly longer than its plan); "
+                         "the torque it needs is still reported")
 
 
 def controller_opt(sp):

@@ -32,6 +32,8 @@ def cmd_plan(args) -> int:
     kw = {"apex_height": float(args.apex or 0.0), "forward_distance": request_distance(args),
           "platform_height": float(args.platform or 0.0)}
     kw.update(robot_params(args))
+    if args.no_flight_check:
+        kw["flight_check"] = False
     t0 = time.perf_counter()
     try:
         result = planmod.plan_flip(args.kind, **kw)

@@ -192,16 +192,17 @@ def _figures(sol: Jm.Solution, robot: _Robot):
 
 
 def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-              motor_speed_scale=1.0, flywheel_torque=None) -> PlanResult:
+              motor_speed_scale=1.0, flywheel_torque=None, flight_check=True) -> PlanResult:
     """Jumping plan alone (no ROS).  ``apex_height`` None or 0 → :func:`default_apex`;
     ``motor_speed_scale`` multiplies the leg motors' no-load speeds and ``flywheel_torque`` (N·m;
-    None or 0: the flywheel's own) is the flywheel motor's limit (as in the simulator)."""
+    None or 0: the flywheel's own) is the flywheel motor's limit (as in the simulator);
+    ``flight_check`` as :class:`FlipSession`'s."""
     apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height, flywheel)
     _check_scale(motor_speed_scale)
     _check_torque(flywheel_torque)
     robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
     apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
-    sol = _solve(kind, apex, dist, plat, robot)
+    sol = _solve(kind, apex, dist, plat, robot, flight_check)
     fig, lo = _figures(sol, robot)
     _check_landing(robot, lo, kind, apex, dist, plat, shared_problem(robot.params, robot.L0, "rest"))
     req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel,

@@ -133,6 +133,9 @@ class PlannerNode:
         self.motor_speed_scale = float(n.declare_parameter('motor_speed_scale', 1.0).value)
         # flywheel motor's torque limit, N·m (0 = the flywheel's own), as in the simulator
         self.flywheel_torque = float(n.declare_parameter('flywheel_torque', 0.0).value)
+        # false: a design study's jumps whose planned flight needs more flywheel torque than the motor
+        # gives are not refused (FlipSession's flight_check)
+        self.flight_check = bool(n.declare_parameter('flight_check', True).value)
         self.pub = n.create_publisher(FlipReference, '/fslip/reference', LATCHED_QOS)
         self.pub_path = n.create_publisher(Path, '/fslip/com_path', VIEW_QOS)
         self.pub_targets = n.create_publisher(MarkerArray, '/fslip/targets', VIEW_QOS)
@@ -231,8 +234,8 @@ class PlannerNode:
         t0 = time.perf_counter()
         try:
             FlipSession('backflip', platform_height=self.platform_height, flywheel=self.flywheel,
-                        motor_speed_scale=self.motor_speed_scale,
-                        flywheel_torque=self.flywheel_torque).jumping_reference()
+                        motor_speed_scale=self.motor_speed_scale, flywheel_torque=self.flywheel_torque,
+                        flight_check=self.flight_check).jumping_reference()
         except (InfeasibleRequest, ValueError) as e:      # a robot that cannot backflip still serves
             self.node.get_logger().info(f'warm-up plan refused ({e})')
         self.node.get_logger().info(f'warmed up in {time.perf_counter() - t0:.2f} s')
@@ -275,7 +278,7 @@ class PlannerNode:
                                   forward_distance=req.forward_distance,
                                   platform_height=req.platform_height or self.platform_height,
                                   flywheel=self.flywheel, motor_speed_scale=self.motor_speed_scale,
-                                  flywheel_torque=self.flywheel_torque)
+                                  flywheel_torque=self.flywheel_torque, flight_check=self.flight_check)
             # every plan starts from the measured state: refused unless the robot stands
             state = self._measured_pelvis()
             if state is None:
