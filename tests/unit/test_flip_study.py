@@ -48,3 +48,19 @@ def test_platform_flip_lands_beyond_the_platform_unless_told_otherwise(tmp_path)
     edge = Scenario.platform(0.5).platform_edge_x
     assert plan() - 0.10 > edge + 0.2
     assert plan("--distance", "0") == 0.0
+
+
+def test_the_simulated_table_prints_a_refused_flywheel(capsys):
+    """--simulate runs only the flywheels whose flip C plans: a refused one (flywheel III on the
+    design-study robot: no landing from its sink) has no measured speed and is printed, not a crash."""
+    from argparse import Namespace
+    from flip_tools.cli.study import print_study
+    rows = [{"flywheel": "I", "I_pitch": 0.1074, "mass": 9.54, "paper_rpm": 1645.0, "planned_rpm": 2362.8,
+             "run_exit": 0, "outcome": "landed", "measured_rpm": 2845.2},
+            {"flywheel": "III", "I_pitch": 0.3222, "mass": 28.63, "paper_rpm": 573.0, "planned_rpm": None,
+             "reason": "no landing plan from the touch-down this jump leads to"}]
+    print_study(Namespace(platform=0.5, apex=1.2, simulate=True, robot="cassie-legs3-fw260"), rows,
+                {"flywheel_torque": 260.0, "motor_speed_scale": 3.0}, 0.6)
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].split()[-2:] == ["2845", "landed"]
+    assert out[3].split()[-3:] == ["infeasible", "-", "-"] and "no landing plan" in out[4]

@@ -80,8 +80,8 @@ def print_study(args, rows: list[dict], robot: dict, distance: float) -> None:
         pr = f"{r['planned_rpm']:.0f}" if r.get("planned_rpm") is not None else "infeasible"
         line = f"{r['flywheel']:>8} {r['I_pitch']:>9.4f} {r['mass']:>6.2f} {r['paper_rpm']:>9.0f} {pr:>11}"
         if args.simulate:
-            mr = r.get("measured_rpm")
-            line += f" {mr if mr is None else round(mr):>12} {str(r.get('outcome')):>10}"
+            mr = r.get("measured_rpm")                  # none where the plan was refused or the run left none
+            line += f" {'-' if mr is None else str(round(mr)):>12} {r.get('outcome') or '-':>10}"
         print(line)
         if r.get("reason"):
             print(f"{'':>10}{r['reason']}")
