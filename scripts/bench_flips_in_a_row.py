@@ -53,6 +53,7 @@ def chain(kind: str, start: float, flips: int, seconds: float, scale: float, tor
 
 
 def main() -> int:
+    from flip_tools.perturb import add_noise_option
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kinds", nargs="+", default=["backflip", "frontflip"], choices=["backflip", "frontflip"])
     ap.add_argument("--flips", type=int, default=3, help="flips in a row from each start time")
@@ -62,16 +63,9 @@ def main() -> int:
     ap.add_argument("--flywheel-torque", type=float, default=260.0)
     ap.add_argument("--apex", type=float, default=1.3)
     ap.add_argument("--controller", default="", help="ControllerConfig overrides, JSON (as flip run --controller)")
-    ap.add_argument("--noise", type=float, default=0.0,
-                    help="std of read noise on the joints and IMU (rad, rad/s; bench_landings.py --noise), seeded per "
-                         "chain and flip")
+    add_noise_option(ap, "chain and flip")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
-    from flip_tools.perturb import check_knobs
-    try:                                         # the sweep's own check of its noise knobs
-        check_knobs({"joint_noise": a.noise, "imu_noise": a.noise})
-    except ValueError as e:
-        ap.error(f"--noise: {e}")
     from tsc_controller.config import config_overrides
     config_overrides(a.controller)                     # refuse a bad setting before anything runs
     jobs = [(k, s) for k in a.kinds for s in a.starts]

@@ -28,7 +28,7 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 
 from flip_tools.flip_request import request_distance
-from flip_tools.perturb import check_knobs
+from flip_tools.perturb import add_noise_option
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
 from flip_tools.summary import LANDING_CRITERIA, RPM_PER_RADPS  # noqa: F401
 from flip_tools.tracking import peak_abs
@@ -157,10 +157,7 @@ def parse_args() -> argparse.Namespace:
                     help="COM x the jump starts from (a run's summary.json planner.x_start_m; default: the initial one)")
     ap.add_argument("--heading", type=float, nargs=3, default=None, metavar=("PSI", "PIVOT_X", "PIVOT_Y"),
                     help="with --x-start: the heading frame the plans start in (a run's summary.json planner.heading)")
-    ap.add_argument("--noise", type=float, default=0.0,
-                    help="std of Gaussian noise on the joints and IMU the controller reads (rad, rad/s; flip sweep's "
-                         "joint_noise and imu_noise), seeded per start time: independent runs where a settled robot "
-                         "would repeat one run from every start time (e.g. 1e-4)")
+    add_noise_option(ap, "start time")
     ap.add_argument("--no-flight-check", action="store_true",
                     help="a design study: plan a jump whose planned flight needs more flywheel torque than the "
                          "motor gives (the planner refuses it otherwise; the robot may fly longer than its plan)")
@@ -171,10 +168,6 @@ def parse_args() -> argparse.Namespace:
     a = ap.parse_args()
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
-    try:                                         # the sweep's own check of its noise knobs
-        check_knobs({"joint_noise": a.noise, "imu_noise": a.noise})
-    except ValueError as e:
-        ap.error(f"--noise: {e}")
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge
     return a
 

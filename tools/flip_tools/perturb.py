@@ -223,6 +223,23 @@ def read_noise(sim, std: float, seed: int, start: float) -> Plant:
     return Plant(np.random.default_rng(seed), sim, PlantPerturbation(sim, {}), start, std, std)
 
 
+def add_noise_option(ap, seeded: str) -> None:
+    """The benches' ``--noise STD`` (scripts/bench_landings.py, bench_flips_in_a_row.py): :func:`read_noise`'s
+    std, checked as the sweep checks its ``joint_noise`` and ``imu_noise`` knobs (argparse exits 2 on a bad
+    one); ``seeded``: what each run's seed is drawn from, for the help."""
+    import argparse
+
+    def std(text: str) -> float:
+        try:
+            return check_knobs({"joint_noise": float(text)})["joint_noise"]
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    ap.add_argument("--noise", type=std, default=0.0, metavar="STD",
+                    help="std of Gaussian noise on the joints and IMU the controller reads (rad, rad/s; flip sweep's "
+                         f"joint_noise and imu_noise), seeded per {seeded}: independent runs where a settled robot "
+                         "would repeat one run (e.g. 1e-4)")
+
+
 def failed_result(sample: Sample, error: str | None, mode: str = "offline") -> dict:
     """A sample's result before (or without) a run: the record, outcome ``error``; ``mode``: how it
     runs (offline, or graph: flip_tools.sweep_graph)."""
