@@ -117,18 +117,14 @@ def touch_down_state(r):
     return next(st for k, st in r["event_states"] if k == 1 and st.t > lo)
 
 
-@pytest.mark.parametrize("psi", [
-    -0.2, 0.2,
-    pytest.param(0.3, marks=pytest.mark.xfail(strict=True, reason=(
-        "turned 0.3 rad (or -0.3) the backflip touches down with its feet 2 cm to the side of the COM and "
-        "one foot first (the left/right asymmetry grows through the flight: 0.1 and 0.25 rad too, 0 and "
-        "0.2 not), and the landing's stand-up unloads that foot: it falls sideways 1.6 s later"))),
-])
+@pytest.mark.parametrize("psi", [-0.3, -0.2, 0.1, 0.2, 0.25, 0.3])
 def test_backflip_of_a_robot_facing_another_way_lands_as_one_facing_x(backflip, psi):
     """The somersault is in the plane the robot faces (the controller's heading frame in JUMPING,
     FLIGHT and LANDING; the planner's plans along the heading it stood with): turned about the
     vertical, the same backflip lands with the feet as far ahead of the COM along its heading (with
-    the jump and flight written in world x-z, 0.04 rad made it fall)."""
+    the jump and flight written in world x-z, 0.04 rad made it fall).  Turned 0.1, 0.25 or ±0.3 rad it
+    touches down with one foot first and the pelvis yawing; it fell sideways 1.6 s later while the landing
+    turned the pelvis back to the feet's heading (config ``landing_yaw_stop``, docs/tuning.md)."""
     sim, ctl = robot()
     z_stand = float(sim.standing_qpos[2])
     q = sim.standing_qpos.copy()
@@ -255,3 +251,28 @@ def test_bench_landings_at_rest_is_the_verdicts_check():
     assert not bl.at_rest(t, still, spin)
     assert bl.LANDING_CRITERIA["rest_window_s"] == 0.5
     assert [bl.start_cell(x) for x in (0.5, 0.98, 1.555, 1.5555, 3.0)] == ["0.50", "0.98", "1.555", "1.5555", "3.00"]
+
+
+def test_a_backflip_that_touches_down_yawing_lands_and_stands():
+    """A backflip whose flight ends with the pelvis yawing at ~1.2 rad/s (read noise of 1e-4 seeded as
+    scripts/bench_landings.py --noise 1e-4 seeds its 0.9 s start) touches down with ~45 kg*m^2/s in the
+    flywheel, where a pelvis yaw rate is a roll moment on the feet: the landing stops the yaw and leaves
+    it there (``landing_yaw_stop``) and the robot lands and stands.  Turning the pelvis back to the feet's
+    heading within the landing's 0.8 s blend, it unloaded one foot and fell sideways 1.5 s after the
+    touch-down."""
+    from flip_tools.perturb import read_noise
+    sim, ctl = robot()
+    z_stand = float(sim.standing_qpos[2])
+    plant = read_noise(sim, 1e-4, round(0.9 * 1e4), 0.9)
+    yaw_rate = {}
+
+    def at_touch_down(sim, ctl, u, info):
+        if info["domain"] == 3 and not yaw_rate:
+            yaw_rate["td"] = float(sim.pelvis_twist("world")[1][2])
+
+    r = of.run("backflip", seconds=9.0, start=0.9, sim=sim, controller=ctl, every=10, plant=plant,
+               on_step=at_touch_down, apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    assert abs(yaw_rate["td"]) > 0.8, yaw_rate             # the case: it touches down yawing
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"
+    of.assert_stands(sim, ctl, z_stand)

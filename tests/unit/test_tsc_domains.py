@@ -420,3 +420,34 @@ def test_the_landing_after_a_jump_is_tracked_in_the_jumps_heading_frame():
 
     u0, u_turned = landing_command(0.0), landing_command(0.3)
     assert np.max(np.abs(u_turned - u0)) < 1e-9 * np.max(np.abs(u0))
+
+
+@pytest.mark.parametrize("stop", [0.32, None])
+def test_a_landing_stops_the_pelvis_yaw_where_its_touch_down_rate_takes_it(stop):
+    """LANDING brings the pelvis yaw to rest at psi0 + psi_dot0 * landing_yaw_stop / 2, not back to the
+    feet's heading (a yaw rate with the flywheel spinning is a roll moment on the feet: config's field);
+    STANDING then brings it to the feet.  ``None``: the feet's heading, as before."""
+    sim = Simulator()
+    q, v = sim.standing_qpos.copy(), np.zeros(sim.model.nv)
+    v[5] = -1.2                                   # pelvis yaw rate (rad/s, local z of the upright pelvis)
+    sim.reset(q, v)
+    ctl = Controller(export_mjcf(), landing_yaw_stop=stop)
+    sc = StateConverter(ctl.dyn)
+    qq, vv = sc.from_simulator(sim)
+    ctl.compute(qq, vv, sim.time)                 # standing seen (its leg length); then a touch-down
+    ctl._somersault = True
+    ctl._enter(Domain.LANDING, sim.time)
+    ctl.compute(qq, vv, sim.time)
+    psi0, psi_dot0 = ctl.ground.stand["p0"][2], ctl.ground.stand["pd0"][2]
+    assert psi_dot0 == pytest.approx(-1.2, abs=1e-6)
+    end = ctl.ground.targets(sim.time + ctl.cfg.blend_time + 0.1, True)["pelvis"]
+    feet_yaw = ctl.ground.feet()[1]
+    expected = feet_yaw if stop is None else psi0 + 0.5 * psi_dot0 * stop
+    assert end.value[2] == pytest.approx(expected, abs=1e-9)
+    assert end.d_value[2] == 0.0
+    if stop is not None:                          # the stop, not the feet: 0.19 rad apart here
+        assert abs(end.value[2] - feet_yaw) > 0.15
+    ctl._enter(Domain.STANDING, sim.time + 2.0)   # STANDING turns the pelvis back to the feet
+    ctl.compute(qq, vv, sim.time + 2.0)
+    assert ctl.ground.targets(sim.time + 2.0 + ctl.cfg.blend_time + 0.1, False)["pelvis"].value[2] == \
+        pytest.approx(feet_yaw, abs=1e-9)

@@ -123,6 +123,13 @@ class ControllerConfig:
     # kg*m^2/s: the own landing lasts until |H_pitch| is below this (and its profiles have ended):
     # handed to STANDING with momentum left, the robot falls (docs/tuning.md)
     landing_H_done: float = 2.0
+    # s: LANDING brings the pelvis yaw to rest at psi0 + psi_dot0 * landing_yaw_stop / 2 (where a constant
+    # deceleration from its touch-down rate over this time stops it), not back to the feet's heading;
+    # STANDING does that.  With the flywheel's momentum h along the pelvis y axis, a pelvis yaw rate is a
+    # roll moment h * psi_dot on the feet: stopping a touch-down's yaw rate asks it while the impact loads
+    # both feet, turning the pelvis back asks it again when they carry only the robot's weight, and it
+    # tips over sideways (docs/tuning.md).  None: to the feet's heading
+    landing_yaw_stop: float | None = 0.32
     L_min: float = 0.50               # m, shortest leg the fallback landing may use
     # STANDING: once the COM is past the front or back of the feet on the ground (along their heading)
     # the H_pitch weight falls linearly, to standing_H_edge_weight of its value standing_H_edge (m)

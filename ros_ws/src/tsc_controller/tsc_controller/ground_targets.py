@@ -129,6 +129,8 @@ class GroundTargets:
             p0, _, _, pd0 = self.o_pel.evaluate(dyn)
             # start from the current value and velocity (soft catch after touch-down)
             H0 = self.o_H.evaluate(dyn)[0]
+            if landing and self.cfg.landing_yaw_stop is not None:
+                yaw = float(p0[2] + 0.5 * pd0[2] * self.cfg.landing_yaw_stop)    # see the config's field
             self.stand = dict(t0=t, L0=L0.copy(), c0=c0.copy(), p0=p0.copy(), L1=np.array([self.cfg.L_stand]),
                               c1=mid[:2].copy(), p1=np.array([0.0, 0.0, yaw]),
                               Ld0=Ld0.copy(), cd0=cd0.copy(), pd0=pd0.copy(), H0=H0.copy(),
