@@ -123,8 +123,8 @@ def test_backflip_of_a_robot_facing_another_way_lands_as_one_facing_x(backflip, 
     FLIGHT and LANDING; the planner's plans along the heading it stood with): turned about the
     vertical, the same backflip lands with the feet as far ahead of the COM along its heading (with
     the jump and flight written in world x-z, 0.04 rad made it fall).  Turned 0.1, 0.25 or ±0.3 rad it
-    touches down with one foot first and the pelvis yawing; it fell sideways 1.6 s later while the landing
-    turned the pelvis back to the feet's heading (config ``landing_yaw_stop``, docs/tuning.md)."""
+    touches down one foot first; it fell sideways 1.6 s later until the landing stopped turning the pelvis
+    back to the feet's heading (config ``landing_yaw_stop``, docs/tuning.md)."""
     sim, ctl = robot()
     z_stand = float(sim.standing_qpos[2])
     q = sim.standing_qpos.copy()
@@ -255,7 +255,7 @@ def test_bench_landings_at_rest_is_the_verdicts_check():
 
 def test_a_backflip_that_touches_down_yawing_lands_and_stands():
     """A backflip whose flight ends with the pelvis yawing at ~1.2 rad/s (read noise of 1e-4 seeded as
-    scripts/bench_landings.py --noise 1e-4 seeds its 0.9 s start) touches down with ~45 kg*m^2/s in the
+    scripts/bench_landings.py --noise 1e-4 seeds its 0.9 s start) touches down with ~43 kg*m^2/s in the
     flywheel, where a pelvis yaw rate is a roll moment on the feet: the landing stops the yaw and leaves
     it there (``landing_yaw_stop``) and the robot lands and stands.  Turning the pelvis back to the feet's
     heading within the landing's 0.8 s blend, it unloaded one foot and fell sideways 1.5 s after the
