@@ -16,7 +16,7 @@ QP of the one it is in.  Outputs per domain:
 * JUMPING / LANDING — Y1 = H_pitch - H_FSLIP(t); Y2 = [L, x_com, y_com, phi_pitch, phi_yaw] - desired(t)
   (eq. Y^{J/L}), plus phi_roll -> 0: the paper's sagittal outputs leave the pelvis roll of the 3D robot
   unobserved, so it is held as an extra output.  Names missing from the reference keep their standing
-  values.
+  values, except that LANDING stops the pelvis yaw where it is going (``landing_yaw_stop``).
 * FLIGHT — Y1 = H_flywheel - H_flywheel^des(t) (eq. Y^F_1);  t < T1: per-leg L and the motor joints
   except the knees held at their lift-off values q+, and the pelvis y axis held along world y (not in
   the paper: see config.DEFAULT_GAINS["axis"]);  t >= T1: per-leg L, leg angle -> -beta+, toe
