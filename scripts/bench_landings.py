@@ -27,6 +27,7 @@ import statistics
 import sys
 from concurrent.futures import ProcessPoolExecutor
 
+from flip_tools.cli.options import flight_check_opt
 from flip_tools.flip_request import request_distance
 from flip_tools.perturb import add_noise_option
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
@@ -158,9 +159,7 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--heading", type=float, nargs=3, default=None, metavar=("PSI", "PIVOT_X", "PIVOT_Y"),
                     help="with --x-start: the heading frame the plans start in (a run's summary.json planner.heading)")
     add_noise_option(ap, "start time")
-    ap.add_argument("--no-flight-check", action="store_true",
-                    help="a design study: plan a jump whose planned flight needs more flywheel torque than the "
-                         "motor gives (the planner refuses it otherwise; the robot may fly longer than its plan)")
+    flight_check_opt(ap)                         # --no-flight-check, as flip run's
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
