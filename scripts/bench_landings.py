@@ -84,6 +84,8 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
                        for _, ref in r["references"] if ref.domain == 3]
     # the landings the controller's own landing did instead of the tracked plan (reason each)
     out["own_landing"] = [why for _, why in r["ctl"].landing_fallbacks]
+    # rebounds under the tracked plan (LIFT_OFFs in LANDING) and the re-solves of their touch-downs
+    out["rebounds"] = len(r["ctl"].rebounds)
     # the flywheel's peak speed (rpm) in the flight and in the landing (issue 22: the landing's at most the flight's)
     out["fw_peak_rpm"] = None
     if td is not None:
@@ -223,6 +225,11 @@ def main() -> int:
               f"IPOPT iterations median {statistics.median(its):.0f}, max {max(its)}; answered by a fallback "
               f"(cold / momentum free / blend) in {sum(v['fallback'] > 0 for v in first)} of {len(first)}")
     print(f"flywheel faster in the landing than in the flight in {faster_in_landing(rows)} of {len(rows)} runs")
+    reb = [r for r in rows if r["rebounds"]]
+    later = [v for r in rows for v in r["resolves"][1:]]
+    print(f"rebounds under the tracked landing plan in {len(reb)} of {len(rows)} runs"
+          + (f"; their touch-downs' re-solves: {len(later)}, answered by a fallback in "
+             f"{sum(v['fallback'] > 0 for v in later)}" if later else ""))
     own = [r for r in rows if r["own_landing"]]
     print(f"own landing (the controller's fallback) in {len(own)} of {len(rows)} runs"
           + (f": {', '.join(sorted({w for r in own for w in r['own_landing']}))}" if own else ""))

@@ -118,6 +118,47 @@ def test_landing_plan_stands_up_without_jumping_again():
     assert np.min(sol.Fz[lowest:]) > 0.3 * p.m * p.g
 
 
+def test_a_rebounds_rising_touch_down_gets_a_landing_plan():
+    """A touch-down after a rebound can come while the COM still rises (flip C: ż +0.59 m/s, the
+    momentum reversed).  The landing plan may go on rising at that rate, no faster, and comes to rest
+    (with the rise bound at 0.2 m/s from the first knot, the problem was infeasible and the landing got
+    the blend-to-standing fallback)."""
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=0.6, platform_height=0.5,
+                      motor_speed_scale=3.0, flywheel_torque=260.0)
+    s.jumping_reference()
+    p = s.robot.params
+    x0 = np.array([-0.055, 0.911, 0.272, 0.588, -6.711])     # measured offline, C from 2.1 s
+    sol = LandingProblem(p, s.robot.L0).solve(x0, warm=False)
+    X = sol.X
+    assert np.max(X[:, 3]) <= 0.588 + 1e-6
+    assert np.allclose(X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)
+    assert np.all(sol.Fz >= -1e-3) and np.all(np.abs(sol.Fx) <= p.mu * sol.Fz + 1e-3)
+
+
+def test_a_bounce_after_the_landing_is_re_solved_at_its_touch_down_without_predictions():
+    """A lift-off after the touch-down (a rebound) gets a level hop's flight plan, is not an aborted
+    flip, predicts no landings from the jump's lift-off, and its touch-down gets a landing plan."""
+    s = P.FlipSession("backflip", **FLIP)
+    jr = s.jumping_reference()
+    s.started(1.0)
+    lo = s.result.lift_off
+    t_lo = 1.0 + jr.duration
+    s.flight_reference(P.MeasuredState(t_lo, np.array([0.0, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                                       lo["momentum"], lo["beta"], 0.0))
+    td = P.MeasuredState(t_lo + 0.6, np.array([0.05, 0.0, 0.95]), np.array([0.2, 0.0, -3.0]), lo["momentum"],
+                         -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    assert s.landing_reference(td).domain == 3
+    bounce = P.MeasuredState(td.t + 0.2, np.array([0.0, 0.0, 0.9]), np.array([0.0, 0.0, 0.3]), 2.0,
+                             -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    fr = s.flight_reference(bounce)
+    assert s.bounced and not s.aborted and fr.figures["aborted"] == 0.0
+    assert s.predict_landing(bounce) is None
+    again = P.MeasuredState(bounce.t + 0.05, np.array([0.0, 0.0, 0.88]), np.array([0.0, 0.0, -0.2]), 2.0,
+                            -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    lr = s.landing_reference(again)
+    assert lr.domain == 3 and lr.figures["fallback"] == 0.0
+
+
 def test_landing_is_planned_from_where_the_feet_came_down():
     """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
     reference ends over those feet: two touch-downs that differ only in where the feet are get

@@ -365,11 +365,40 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     ctl.ground.foot_anchor = anchors
 
 
-def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing():
-    """LANDING with the planner's landing reference: a LIFT_OFF (the feet left the ground under the
-    plan) drops it for the controller's own landing, says why (``landing_fallback``), and keeps the
-    re-solve of the next touch-down as ``landing_plan`` only; the next flight clears it."""
+def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_downs_re_solve():
+    """LANDING with the planner's landing reference (default ``rebound_keeps_landing_plan``): a LIFT_OFF
+    (the feet left the ground under the plan) is recorded as a rebound and the plan goes on; the re-solve
+    of the next touch-down replaces it and is tracked from its own start; no fallback."""
     sim, ctl = Simulator(), Controller(export_mjcf(), track_hop_landing_reference=True)
+    sc = StateConverter(ctl.dyn)
+    ts = np.linspace(0.0, 1.0, 11)
+    land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)
+
+    def tick():
+        q, v = sc.from_simulator(sim)
+        ctl.compute(q, v, sim.time)
+    tick()
+    ctl._enter(Domain.LANDING, sim.time)
+    ctl.set_reference(land)
+    tick()
+    ctl.on_contact_event(0, sim.time)              # LIFT_OFF while the plan is tracked
+    tick()
+    assert ctl.domain == Domain.LANDING and ctl.refs.get(Domain.LANDING) is land
+    assert ctl.rebounds == [pytest.approx(sim.time)] and ctl.landing_fallback is None
+    assert ctl.landing_fallbacks == []
+    again = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=sim.time)
+    ctl.set_reference(again)                       # the re-solve at the next touch-down
+    tick()
+    assert ctl.refs.get(Domain.LANDING) is again and ctl.domain == Domain.LANDING
+    assert ctl.landing_fallbacks == []
+
+
+def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing_when_so_configured():
+    """With ``rebound_keeps_landing_plan`` off: a LIFT_OFF under the tracked plan drops it for the
+    controller's own landing, says why (``landing_fallback``), and keeps the re-solve of the next
+    touch-down as ``landing_plan`` only; the next flight clears it."""
+    sim = Simulator()
+    ctl = Controller(export_mjcf(), track_hop_landing_reference=True, rebound_keeps_landing_plan=False)
     sc = StateConverter(ctl.dyn)
     ts = np.linspace(0.0, 1.0, 11)
     land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)

@@ -38,7 +38,7 @@ ALPHA = 1e-1
 T_BOUNDS = (0.4, 2.0)
 N_KNOTS = 40
 #: The plan's COM rises at most RISE_RESTITUTION times the touch-down sink speed (a restitution bound,
-#: not below RISE_FLOOR m/s).  Unbounded, the optimum crouches on the spring and springs back up at
+#: not below RISE_FLOOR m/s, nor below the touch-down's own rate when it is rising: a rebound's).  Unbounded, the optimum crouches on the spring and springs back up at
 #: ~0.8 m/s with F_z falling to ~50 N; the robot, lagging the crouch, overshoots that rise and its feet
 #: leave the ground (the "rebound" fallback in most landings of flip C and D; docs/measurements.md).
 RISE_RESTITUTION = 0.2
@@ -80,7 +80,8 @@ class LandingProblem:
         opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
         L = Jm.transcribe(opti, X, U, T, p, N)
         self.L = L
-        opti.subject_to(X[3, :] <= ca.fmax(-RISE_RESTITUTION * self.X0[3], RISE_FLOOR))
+        # a touch-down that is already rising (a rebound's) may go on rising at that rate, no faster
+        opti.subject_to(X[3, :] <= ca.fmax(ca.fmax(-RISE_RESTITUTION * self.X0[3], RISE_FLOOR), self.X0[3]))
         rows = slice(0, 4) if free_momentum else slice(0, 5)
         for k in (N - 2, N - 1):       # at rest over the last interval (L̇ = 0 at the end)
             opti.subject_to(X[rows, k] == Xs[rows])

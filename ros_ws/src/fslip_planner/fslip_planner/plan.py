@@ -252,6 +252,9 @@ class FlipSession:
         self._predicted: list = []      # touch-downs predicted at the lift-off, not solved yet
         self._flight_T = None
         self.aborted = False
+        #: a lift-off came after the landing's touch-down (a rebound): its flight is a hop, and the next
+        #: touch-down is re-solved from its measured state, without predictions
+        self.bounced = False
 
     # --- jumping
     def jumping_reference(self, state: Optional[PelvisState] = None) -> Reference:
@@ -292,7 +295,8 @@ class FlipSession:
         plan does not depend on how fast the machine is.  Returns the time spent (s), None when there is
         nothing to predict."""
         _check_state(state)
-        if self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted:
+        if (self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted
+                or self.bounced):
             return None
         if self.heading is not None:
             state = self.heading.measured(state)
@@ -339,7 +343,8 @@ class FlipSession:
         """FLIGHT reference at LIFT_OFF; None for contact events before the jump has started.
 
         A premature (< ½ the planned stance) or weak (ż < ½ planned) lift-off, or a bounce after
-        the landing, gets a no-rotation flight plan (level pelvis) and marks the flip aborted."""
+        the landing, gets a no-rotation flight plan (level pelvis); the first two mark the flip
+        ``aborted``, a bounce ``bounced`` (its touch-down is re-solved like the first, §III-C)."""
         _check_state(state)
         if self.result is None or self.t_start is None or state.t < self.t_start:
             return None
@@ -349,12 +354,14 @@ class FlipSession:
         zd = float(state.com_velocity[2])
         early = state.t - self.t_start < ABORT_STANCE_FRACTION * self.result.solution.T
         weak = zd < ABORT_ZDOT_FRACTION * lo["zdot"]
-        if self.t_touchdown is not None or early or weak:
+        bounce = self.t_touchdown is not None
+        if bounce or early or weak:
             # a bounce after the landing, or a premature / weak lift-off: a flip in this flight time
-            # is impossible, so no rotation is asked (level pelvis) and the flip is abandoned
+            # is impossible, so no rotation is asked (level pelvis); a premature / weak one abandons it
             kind, beta, plat = "hop", 0.0, 0.0
             self.t_touchdown = self.landing_end = None
-            self.aborted = self.aborted or early or weak
+            self.bounced = self.bounced or bounce
+            self.aborted = self.aborted or (not bounce and (early or weak))
         p = self.robot.params
         I_rest = float(p.I(lo["L"])) - self.robot.I_fw
         fp = Fl.flight_plan(kind, float(state.pelvis_pitch), float(state.pelvis_pitch_rate),

@@ -156,6 +156,10 @@ class ControllerConfig:
     # with the controller's own profiles (leg catch, bounded momentum removal), which are also what runs
     # when no landing reference arrives and after a rebound under the tracked plan (docs/tuning.md)
     track_landing_reference: bool = True
+    # LANDING under the tracked plan: a rebound (a LIFT_OFF) keeps that plan until the re-solve of the
+    # next touch-down replaces it (paper §III-C: each touch-down is re-solved from its measured state),
+    # or (False) hands the rest of the landing to the own landing (docs/tuning.md)
+    rebound_keeps_landing_plan: bool = True
     # LANDING after a hop (no turn, nothing to stop): the same choice.  Off: the hop's re-solve, planned
     # from the pre-impact sink rate, unloads the feet ~80 ms after the touch-down; with Cassie's
     # published motor curve the paper's robot then fell in 1 of 3 graph runs (own landing: no rebound,

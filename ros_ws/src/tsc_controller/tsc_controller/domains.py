@@ -96,6 +96,9 @@ class Controller:
         #: every landing the own landing did (t, reason): from a rebound's LIFT_OFF, or from the
         #: touch-down of a landing no plan was tracked in ("no landing plan")
         self.landing_fallbacks: list[tuple[float, str]] = []
+        #: times of the LIFT_OFFs seen under a tracked landing plan (rebounds): with
+        #: ``rebound_keeps_landing_plan`` the plan goes on until the next touch-down's re-solve arrives
+        self.rebounds: list[float] = []
         self._landing_tracked = False
         self.domain = Domain.STANDING
         self.t_enter = None
@@ -181,12 +184,13 @@ class Controller:
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
             if ev is not None and ev[0] == LIFT_OFF and self.refs.get(Domain.LANDING) is not None:
-                # the feet left the ground under the tracked plan: it cannot be followed from here (its
-                # re-solve at the next touch-down starts the same way); the own landing, from now
-                self.refs.pop(Domain.LANDING, None)
-                self.landing_fallback = "rebound"
-                self.landing_fallbacks.append((ev[1], "rebound"))
-                self.ground.reanchor()
+                self.rebounds.append(ev[1])
+                if not self.cfg.rebound_keeps_landing_plan:
+                    # the feet left the ground under the tracked plan: the own landing, from now
+                    self.refs.pop(Domain.LANDING, None)
+                    self.landing_fallback = "rebound"
+                    self.landing_fallbacks.append((ev[1], "rebound"))
+                    self.ground.reanchor()
             if self.refs.get(Domain.LANDING) is not None:
                 self._landing_tracked = True
             if self.landing.done(t, self.refs.get(Domain.LANDING)):

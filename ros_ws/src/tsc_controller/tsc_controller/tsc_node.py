@@ -115,12 +115,16 @@ class TscNode:
         q, v = self._state(js_buf, odom_buf)
         t0 = time.perf_counter()
         n_dropped, n_own = len(self.controller.dropped), len(self.controller.landing_fallbacks)
+        n_rebounds = len(self.controller.rebounds)
         u, _ = self.controller.compute(q, v, k_ns * 1e-9, details=False)
         dt_us = (time.perf_counter() - t0) * 1e6
         if len(self.controller.landing_fallbacks) > n_own:
             t, why = self.controller.landing_fallbacks[-1]
             # (flip run reads this line into summary.json's landing_fallbacks)
             self.node.get_logger().warn(f'landing fallback: own landing from t={t:.4f} s ({why})')
+        if len(self.controller.rebounds) > n_rebounds and self.controller.cfg.rebound_keeps_landing_plan:
+            self.node.get_logger().info(f'rebound at t={self.controller.rebounds[-1]:.4f} s: the landing plan '
+                                        f'goes on until the next touch-down is re-solved')
         if len(self.controller.dropped) > n_dropped:
             plan, start, t = self.controller.dropped[-1]
             self.node.get_logger().warn(f'plan {plan}: jumping reference from t={start:.3f} s not started: '
