@@ -276,3 +276,27 @@ def test_a_backflip_that_touches_down_yawing_lands_and_stands():
     assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
     assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"
     of.assert_stands(sim, ctl, z_stand)
+
+
+def test_a_platform_frontflip_that_rebounds_tracks_the_re_solve_of_its_next_touch_down():
+    """Flip C (0.5 m platform, 0.6 m forward, apex 1.2 m) with read noise seeded as
+    scripts/bench_landings.py --noise 1e-4 seeds its 0.7 s start: the feet leave the ground again under
+    the tracked landing plan (a rebound).  The plan goes on, the planner re-solves the next touch-down
+    from its measured state and the controller tracks that (paper §III-C): the own landing never runs,
+    and the robot lands and stands.  Before, the own landing took over at the rebound."""
+    from cassie_model.model import Scenario
+    from flip_tools.perturb import read_noise
+    sim = Simulator(scenario=Scenario.platform(0.5), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    z_stand = float(sim.standing_qpos[2]) - 0.5            # on the ground, 0.5 m below the platform
+    plant = read_noise(sim, 1e-4, round(0.7 * 1e4), 0.7)
+    r = of.run("frontflip", seconds=11.0, start=0.7, sim=sim, controller=ctl, every=10, plant=plant,
+               apex_height=1.2, forward_distance=0.6, platform_height=0.5, motor_speed_scale=SCALE,
+               flywheel_torque=FLYWHEEL_TORQUE)
+    assert ctl.rebounds, "the case: the feet leave the ground under the tracked landing plan"
+    landings = [ref for _, ref in r["references"] if ref.domain == 3]
+    assert len(landings) >= 2 and all(ref.figures["fallback"] == 0.0 for ref in landings)
+    assert ctl.landing_fallbacks == []                   # the own landing never ran
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "frontflip", pitch_end=plant.pitch) == "landed"
+    of.assert_stands(sim, ctl, z_stand)

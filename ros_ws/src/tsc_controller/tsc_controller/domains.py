@@ -30,7 +30,9 @@ event (the paper plans them at those events).  Missing or late references never 
 without a command: JUMPING without lift-off past its end (+ ``grace``; + up to ``push_grace`` while the
 COM still rises fast) falls back to STANDING, FLIGHT
 without a reference holds the lift-off posture and flywheel momentum, LANDING without a reference uses
-the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs.
+the standing outputs.  A LIFT_OFF seen while LANDING or STANDING (a rebound) keeps the ground outputs;
+under a tracked landing plan it keeps that plan until the next touch-down's re-solve replaces it
+(``rebound_keeps_landing_plan``; off: the own landing takes over).
 The controller's own landing (after a somersault) starts with a light H_pitch weight that rises to its
 standing value (``landing_H_weight``, ``landing_H_ramp``): the flywheel takes the moment of the ground
 force that stops the body's forward speed, and the momentum is removed afterwards; the landing lasts
