@@ -176,3 +176,17 @@ def test_landing_fallbacks_are_read_from_the_controller_log(tmp_path):
     log.write_text("[INFO] [tsc_node]: reference: plan 1 domain 3\n")
     assert landing_fallbacks(log) == []
     assert landing_fallbacks(tmp_path / "missing.log") is None
+
+
+def test_landing_rebounds_are_read_from_the_controller_log(tmp_path):
+    """summary.json's landing_rebounds: the times of tsc_node's 'rebound at t=' lines (the plan went on
+    until the next touch-down's re-solve), in order; [] without them; None without a log."""
+    from flip_tools.cli.results import landing_rebounds
+    log = tmp_path / "tsc.log"
+    log.write_text("[INFO] [tsc_node]: reference: plan 1 domain 3\n"
+                   "[INFO] [1.2] [tsc_node]: rebound at t=4.3825 s: the landing plan goes on until the next "
+                   "touch-down is re-solved\n")
+    assert landing_rebounds(log) == [4.3825]
+    log.write_text("[INFO] [tsc_node]: reference: plan 1 domain 3\n")
+    assert landing_rebounds(log) == []
+    assert landing_rebounds(tmp_path / "missing.log") is None

@@ -34,6 +34,7 @@ def finish(out: Path, graph: Graph | None, report: dict, extra: dict, kind: str 
                 f"({kept['bytes_dropped']} bytes of an unfinished chunk left out); index and metadata.yaml written")
     summary["processes"] = report
     summary["landing_fallbacks"] = landing_fallbacks(out / "logs" / "tsc.log")
+    summary["landing_rebounds"] = landing_rebounds(out / "logs" / "tsc.log")
     summary.update(extra)   # a rejected request: outcome "rejected" whatever the bag shows
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     if plots and bag.exists() and (bag / "metadata.yaml").exists():
@@ -58,12 +59,21 @@ def landing_fallbacks(log_file: Path) -> list | None:
             for m in pat.finditer(log_file.read_text(errors="replace"))]
 
 
+def landing_rebounds(log_file: Path) -> list | None:
+    """The times (s) the feet left the ground under the tracked landing plan and the plan went on until
+    the next touch-down's re-solve (tsc_node's 'rebound at t=' lines); None without the log."""
+    import re
+    if not log_file.is_file():
+        return None
+    return [float(m.group(1)) for m in re.finditer(r"rebound at t=([-0-9.]+) s", log_file.read_text(errors="replace"))]
+
+
 def print_summary(summary: dict, keys=None) -> None:
     keys = keys or ["outcome", "verdict_notes", "net_rotation_deg", "apex_height_m", "forward_distance_m",
                     "flight_time_s", "touchdown_state", "touchdown_com_ahead_of_feet_m", "final_tilt_deg",
                     "final_height_above_ground_m", "at_rest",
                     "peak_flywheel_rpm", "flight_peak_flywheel_rpm", "landing_peak_flywheel_rpm", "tracking",
-                    "landing_fallbacks",
+                    "landing_fallbacks", "landing_rebounds",
                     "tsc_tick_us", "sim_duration_s", "wall_time_s", "real_time_factor"]
     for k in keys:
         if k in summary:
