@@ -141,6 +141,31 @@ def start_cell(start: float) -> str:
     return text + "0" * max(0, 2 - len(text.split(".")[1]))
 
 
+def numbers_attached(argv: list[str], options: dict) -> list[str]:
+    """``argv`` with the numbers that follow each of ``options`` (name -> how many values) led by a space,
+    so that a negative number in exponent form (a summary.json value such as -4.9e-06) is not taken for
+    an option (argparse knows only -1 and -1.5 as negative numbers; float() ignores the space)."""
+    out, i = [], 0
+    while i < len(argv):
+        n = options.get(argv[i])
+        vals = argv[i + 1:i + 1 + n] if n else []
+        if n and len(vals) == n and all(_is_float(v) for v in vals):
+            out += [argv[i]] + [" " + v for v in vals]
+            i += 1 + n
+            continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
 def parse_args() -> argparse.Namespace:
     """The command line, checked (argparse exits 2 on a bad one)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -166,7 +191,7 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
                          "feet, COM velocity x and z, pitch momentum")
-    a = ap.parse_args()
+    a = ap.parse_args(numbers_attached(sys.argv[1:], {"--x-start": 1, "--heading": 3}))
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
     a.distance = request_distance(a)             # as `flip run`: a platform flip clears the edge

@@ -300,3 +300,25 @@ def test_a_platform_frontflip_that_rebounds_tracks_the_re_solve_of_its_next_touc
     assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
     assert of.outcome(r, "frontflip", pitch_end=plant.pitch) == "landed"
     of.assert_stands(sim, ctl, z_stand)
+
+
+def test_bench_landings_takes_a_summarys_heading_and_x_start_as_written():
+    """The re-run recipe of summary.json (``--x-start X --heading PSI PX PY``) takes negative numbers in
+    exponent form as the values they are (argparse alone reads '-4.9e-06' as an option)."""
+    import importlib.util
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landings.py"
+    spec = importlib.util.spec_from_file_location("bench_landings", script)
+    bl = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bl)
+    import sys
+    argv = ["--kinds", "frontflip", "--x-start", "-1.1e-03", "--heading", "-4.9e-06", "0.0126", "-8.1e-05",
+            "--starts", "1.97"]
+    old = sys.argv
+    try:
+        sys.argv = ["bench_landings.py", *argv]
+        a = bl.parse_args()
+    finally:
+        sys.argv = old
+    assert a.x_start == pytest.approx(-1.1e-3) and a.heading == pytest.approx([-4.9e-6, 0.0126, -8.1e-5])
+    assert a.starts == [1.97] and a.kinds == ["frontflip"]
