@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flip_tools.tracking import newest_reference, output_errors, peak_abs, reference_span
+from flip_tools.tracking import errors_over_plans, newest_reference, output_errors, peak_abs, reference_span
 
 
 def _ref(domain=3, start=2.0, offset=0.0):
@@ -44,6 +44,24 @@ def test_no_overlap_gives_none_and_the_newest_reference_wins():
     assert reference_span(resolve) == (2.3, 3.3)
     m = _measured(_ref(start=2.3), lambda t: 0.0 * t)  # the robot followed a plan 5 cm shorter in L
     assert output_errors(m, resolve, 2.3, 3.3)["L"]["rms"] == pytest.approx(0.05, abs=1e-4)
+
+
+def test_a_landing_re_solved_after_a_rebound_is_compared_plan_by_plan():
+    """The touch-down's landing plan until the rebound's touch-down re-solve starts, that one after: a
+    robot that followed each while it was given has no error, pooled over both (n = all samples); one
+    that kept to the first plan shows the second's 5 cm offset from 2.3 s on."""
+    first, second = _ref(start=2.0), _ref(start=2.3, offset=0.05)
+    t = np.arange(0.0, 4.0, 0.005)
+    given = np.where(t < 2.3, np.interp(t, 2.0 + first["t"], first["value"][:, 1]),
+                     np.interp(t, 2.3 + second["t"], second["value"][:, 1]))
+    m = {"t": t, "L": given, "x_com": np.interp(t, 2.0 + first["t"], first["value"][:, 2]), "H_pitch": 0 * t}
+    e = errors_over_plans(m, [second, first], 2.0, 10.0)
+    assert e["plans"] == 2 and (e["t0"], e["t1"]) == (2.0, 3.3)
+    assert e["L"]["rms"] == pytest.approx(0.0, abs=1e-9) and e["L"]["n"] == np.sum((t >= 2.0) & (t <= 3.3))
+    kept = dict(m, L=np.interp(t, 2.0 + first["t"], first["value"][:, 1], right=first["value"][-1, 1]))
+    e = errors_over_plans(kept, [first, second], 2.0, 10.0)
+    assert e["L"]["max"] >= 0.05 - 1e-9
+    assert errors_over_plans(m, [first], 5.0, 6.0) is None
 
 
 def test_peak_abs_over_a_window():

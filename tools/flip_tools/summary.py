@@ -336,7 +336,7 @@ def _tracking(s: dict, data: BagData, refs: list[dict], t_fall: float, notes: li
     """``tracking``: the jumping and landing references against the measured outputs
     (flip_tools.tracking), and the flywheel's peak speed in the flight and in the landing."""
     from .measured import measured_outputs
-    from .tracking import newest_reference, output_errors, peak_abs
+    from .tracking import errors_over_plans, newest_reference, output_errors, peak_abs
 
     lo, td = s.get("liftoff_time_s"), s.get("touchdown_time_s")
     od = data.get("/odom")
@@ -354,9 +354,9 @@ def _tracking(s: dict, data: BagData, refs: list[dict], t_fall: float, notes: li
     jump = newest_reference(refs, JUMPING)
     if jump is not None and lo is not None:
         tracking["jumping"] = output_errors(m, jump, -np.inf, lo)
-    land = newest_reference(refs, LANDING)
-    if land is not None and td is not None:
-        tracking["landing"] = output_errors(m, land, td, t_end)
+    lands = [r for r in refs if r["domain"] == LANDING and td is not None and r["start_time"] >= td - 1e-6]
+    if lands:
+        tracking["landing"] = errors_over_plans(m, lands, td, t_end)
     s["tracking"] = tracking
 
 

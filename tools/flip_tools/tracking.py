@@ -2,8 +2,9 @@
 bag) against the planner's references on /fslip/reference, per ground domain: RMS and largest
 |measured - planned| of each output the reference plans and the bag lets us measure (the paper's Y1
 and Y2 of the jumping and landing domains: H_pitch, L, x_com), over the part of the reference's span
-the robot spent in that domain.  The landing is the paper's re-solve at touch-down (§III-C); the
-errors are against it whether the controller tracked it or ran its own landing."""
+the robot spent in that domain.  The landing is the paper's re-solve at touch-down (§III-C) and, after
+a rebound, the re-solve of the next touch-down, each over its own span; the errors are against them
+whether the controller tracked them or ran its own landing."""
 from __future__ import annotations
 
 import numpy as np
@@ -43,6 +44,30 @@ def output_errors(measured: dict, ref: dict, t0: float, t1: float) -> dict | Non
         e = np.asarray(measured[name], float)[k] - planned
         out[name] = {"rms": round(float(np.sqrt(np.mean(e ** 2))), 4), "max": round(float(np.max(np.abs(e))), 4),
                      "n": int(k.sum())}
+    return out
+
+
+def errors_over_plans(measured: dict, refs: list[dict], t0: float, t1: float) -> dict | None:
+    """:func:`output_errors` against a sequence of references of one domain (a landing and the re-solves
+    of the touch-downs after its rebounds), each over its span until the next one starts (what the
+    controller was given at each time), pooled: {output: {"rms", "max", "n"}}, "t0", "t1" and "plans"
+    (how many references had samples); None without samples."""
+    refs = sorted(refs, key=lambda r: float(r["start_time"]))
+    parts = []
+    for i, ref in enumerate(refs):
+        end = min(t1, float(refs[i + 1]["start_time"])) if i + 1 < len(refs) else t1
+        e = output_errors(measured, ref, t0, end)
+        if e is not None:
+            parts.append(e)
+    if not parts:
+        return None
+    out: dict = {"t0": parts[0]["t0"], "t1": parts[-1]["t1"], "plans": len(parts)}
+    for name in COMPARED:
+        got = [p[name] for p in parts if name in p]
+        if got:
+            n = sum(g["n"] for g in got)
+            out[name] = {"rms": round(float(np.sqrt(sum(g["n"] * g["rms"] ** 2 for g in got) / n)), 4),
+                         "max": max(g["max"] for g in got), "n": n}
     return out
 
 
