@@ -154,7 +154,7 @@ class ControllerConfig:
     somersault_beta_weight: float = 100.0
     # LANDING after a somersault: track the planner's landing re-solve (paper §III-C), or (False) land
     # with the controller's own profiles (leg catch, bounded momentum removal), which are also what runs
-    # when no landing reference arrives and after a rebound under the tracked plan (docs/tuning.md)
+    # when no landing reference arrives (and after a rebound, with rebound_keeps_landing_plan off)
     track_landing_reference: bool = True
     # LANDING under the tracked plan: a rebound (a LIFT_OFF) keeps that plan until the re-solve of the
     # next touch-down replaces it (paper §III-C: each touch-down is re-solved from its measured state),
