@@ -40,7 +40,8 @@ N_KNOTS = 40
 #: The plan's COM rises at most RISE_RESTITUTION times the touch-down sink speed (a restitution bound,
 #: not below RISE_FLOOR m/s, nor below the touch-down's own rate when it is rising: a rebound's).
 #: Unbounded, the optimum crouches on the spring and springs back up at ~0.8 m/s with F_z falling to
-#: ~50 N; the robot, lagging the crouch, overshoots that rise and its feet leave the ground (the "rebound" fallback in most landings of flip C and D; docs/measurements.md).
+#: ~50 N; the robot, lagging the crouch, overshoots that rise and its feet leave the ground (the
+#: "rebound" fallback in most landings of flip C and D; docs/measurements.md).
 RISE_RESTITUTION = 0.2
 RISE_FLOOR = 0.2
 #: warm starts from a solved neighbour: barrier and bound pushes at 1e-3 (at 1e-6 a neighbour 0.05–0.14 m
