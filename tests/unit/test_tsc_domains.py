@@ -367,8 +367,9 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
 
 def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_downs_re_solve():
     """LANDING with the planner's landing reference (default ``rebound_keeps_landing_plan``): a LIFT_OFF
-    (the feet left the ground under the plan) is recorded as a rebound and the plan goes on; the re-solve
-    of the next touch-down replaces it and is tracked from its own start; no fallback."""
+    (the feet left the ground under the plan) is recorded as a rebound and the plan goes on, past its end
+    while the feet are in the air; the re-solve of the next touch-down replaces it and is tracked from its
+    own start to its end; no fallback."""
     sim, ctl = Simulator(), Controller(export_mjcf(), track_hop_landing_reference=True)
     sc = StateConverter(ctl.dyn)
     ts = np.linspace(0.0, 1.0, 11)
@@ -386,11 +387,17 @@ def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_
     assert ctl.domain == Domain.LANDING and ctl.refs.get(Domain.LANDING) is land
     assert ctl.rebounds == [pytest.approx(sim.time)] and ctl.landing_fallback is None
     assert ctl.landing_fallbacks == []
-    again = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=sim.time)
-    ctl.set_reference(again)                       # the re-solve at the next touch-down
-    tick()
+    q, v = sc.from_simulator(sim)
+    ctl.compute(q, v, 1.5)                         # past the plan's end, still in the air: not over
+    assert ctl.domain == Domain.LANDING
+    ctl.on_contact_event(1, 1.5)                   # the rebound's touch-down, and its re-solve
+    again = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=1.5)
+    ctl.set_reference(again)
+    ctl.compute(q, v, 1.6)
     assert ctl.refs.get(Domain.LANDING) is again and ctl.domain == Domain.LANDING
     assert ctl.landing_fallbacks == []
+    ctl.compute(q, v, 2.6)                         # the re-solve has ended on the ground: standing
+    assert ctl.domain == Domain.STANDING and ctl.landing_fallbacks == []
 
 
 def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing_when_so_configured():

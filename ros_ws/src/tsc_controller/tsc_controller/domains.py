@@ -101,6 +101,7 @@ class Controller:
         #: times of the LIFT_OFFs seen under a tracked landing plan (rebounds): with
         #: ``rebound_keeps_landing_plan`` the plan goes on until the next touch-down's re-solve arrives
         self.rebounds: list[float] = []
+        self._rebound_in_air = False     # a rebound's LIFT_OFF under the kept plan, no TOUCH_DOWN yet
         self._landing_tracked = False
         self.domain = Domain.STANDING
         self.t_enter = None
@@ -151,6 +152,7 @@ class Controller:
             self.landing_plan = None
         if domain == Domain.LANDING:
             self._landing_tracked = False
+        self._rebound_in_air = False
         self.domain = Domain(domain)
         self.t_enter = t
         self._domain_object(domain).enter()
@@ -185,8 +187,12 @@ class Controller:
                 self.refs.pop(Domain.FLIGHT, None)
                 self._enter(Domain.LANDING, ev[1])
         elif d == Domain.LANDING:
+            if ev is not None and ev[0] == TOUCH_DOWN:
+                self._rebound_in_air = False
             if ev is not None and ev[0] == LIFT_OFF and self.refs.get(Domain.LANDING) is not None:
                 self.rebounds.append(ev[1])
+                # the plan's end does not end the landing in the air: its touch-down is re-solved
+                self._rebound_in_air = self.cfg.rebound_keeps_landing_plan
                 if not self.cfg.rebound_keeps_landing_plan:
                     # the feet left the ground under the tracked plan: the own landing, from now
                     self.refs.pop(Domain.LANDING, None)
@@ -195,7 +201,7 @@ class Controller:
                     self.ground.reanchor()
             if self.refs.get(Domain.LANDING) is not None:
                 self._landing_tracked = True
-            if self.landing.done(t, self.refs.get(Domain.LANDING)):
+            if not self._rebound_in_air and self.landing.done(t, self.refs.get(Domain.LANDING)):
                 if not self._landing_tracked and self.landing_fallback is None and self._tracks_landing_plan():
                     self.landing_fallbacks.append((self.t_enter, "no landing plan"))
                 self.refs.pop(Domain.LANDING, None)
