@@ -159,6 +159,32 @@ def test_a_bounce_after_the_landing_is_re_solved_at_its_touch_down_without_predi
     assert lr.domain == 3 and lr.figures["fallback"] == 0.0
 
 
+def test_a_touch_down_rising_beyond_the_legs_reach_gets_the_blend_at_once():
+    """A rebound's foot can brush the ground while the COM still rises at 0.92 m/s (flip C from 1.2 s):
+    even with no leg force the COM rises beyond the leg's reach, so no landing plan exists; the planner
+    answers with its blend to standing without trying the solves that cannot succeed (they took 2.4 s).
+    A sinking touch-down, or one rising within reach, is planned as before."""
+    from fslip_planner.landing import rise_beyond_reach
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=0.6, platform_height=0.5,
+                      motor_speed_scale=3.0, flywheel_torque=260.0)
+    s.jumping_reference()
+    p = s.robot.params
+    brush = np.array([-0.109, 0.907, 0.185, 0.92, 1.941])     # measured offline, C from 1.2 s, no noise
+    assert rise_beyond_reach(brush, p)
+    assert not rise_beyond_reach(np.array([-0.109, 0.907, 0.185, 0.3, 1.941]), p)
+    assert not rise_beyond_reach(np.array([-0.116, 0.906, 0.64, -3.886, 27.0]), p)
+    s.started(1.0)
+    lo = s.result.lift_off
+    s.flight_reference(P.MeasuredState(1.0 + s.result.solution.T, np.array([0.0, 0.0, 1.5]),
+                                       np.array([lo["xdot"], 0.0, lo["zdot"]]), lo["momentum"], lo["beta"], 0.0))
+    com = np.array([0.0, 0.0, 0.95])
+    td = P.MeasuredState(3.0, com, np.array([0.185, 0.0, 0.92]), 1.941, 2 * math.pi, 0.0,
+                         support_center=com - np.array([-0.109, 0.0, 0.907]))
+    lr = s.landing_reference(td)
+    assert lr.domain == 3 and lr.figures["fallback"] == 3.0 and lr.figures["rise_beyond_reach"] == 1.0
+    assert lr.figures["iterations"] == 0
+
+
 def test_landing_is_planned_from_where_the_feet_came_down():
     """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
     reference ends over those feet: two touch-downs that differ only in where the feet are get

@@ -165,6 +165,18 @@ def _solution(X, U, T, p, t0, stats) -> Jm.Solution:
                        int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)
 
 
+def rise_beyond_reach(x0, p: F.FSLIPParams) -> bool:
+    """A touch-down [x, z, ẋ, ż, H] whose COM rises higher than the leg reaches even with no leg force
+    (z + ż²/2g above √(L_max² − x²), x as near the foot as ẋ takes it meanwhile): the foot leaves the
+    ground again whatever the plan, so no landing plan exists (a foot brushing the ground in a rebound)."""
+    x, z, xd, zd = (float(v) for v in x0[:4])
+    if zd <= 0.0:
+        return False
+    t_up = zd / p.g
+    x_near = max(0.0, abs(x) - abs(xd) * t_up)
+    return z + zd * zd / (2.0 * p.g) > math.sqrt(max(p.L_max ** 2 - x_near ** 2, 0.0))
+
+
 def mirrored_touchdown(lift_off, platform):
     """The touch-down a jumping plan predicts, FSLIP [x, z, ẋ, ż, H] with the foot at the origin: the
     lift-off's lean mirrored by the foot placement (§IV-B) on a leg of the lift-off length, ẋ and H kept

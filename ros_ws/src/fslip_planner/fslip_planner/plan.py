@@ -20,7 +20,8 @@ from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of
                           validate_inputs)
 from .ground_reference import DT_SAMPLE, ground_reference, knot_outputs, leg_offset
 from .heading_frame import HeadingFrame
-from .landing import LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, shared_problem
+from .landing import (LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, rise_beyond_reach,
+                      shared_problem)
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -388,7 +389,9 @@ class FlipSession:
         Warm re-solve from the nearest touch-down solved before (the nominal one, those predicted at the
         lift-off: predict_landing); if IPOPT fails: cold, then with the momentum left free (the flywheel
         keeps spinning), and as a last resort a blend to standing
-        (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out."""
+        (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out.  A
+        touch-down whose COM rises beyond the leg's reach (:func:`landing.rise_beyond_reach`: a foot
+        brushing the ground in a rebound) gets the blend at once (``figures['rise_beyond_reach']``)."""
         _check_state(state)
         if self.result is None or self.t_liftoff is None or state.t < self.t_liftoff:
             return None
@@ -408,6 +411,10 @@ class FlipSession:
         attempts = [(lambda: self._landing.solve(x0, warm=True)),
                     (lambda: self._landing.solve(x0, warm=False)),
                     (lambda: self._free_landing().solve(x0, warm=False))]
+        beyond = rise_beyond_reach(x0, self.robot.params)
+        fig.update(rise_beyond_reach=float(beyond))
+        if beyond:                  # no landing plan exists: the blend at once, not after the failed solves
+            attempts = []
         for i, attempt in enumerate(attempts):
             try:
                 sol, fallback = attempt(), i
