@@ -185,6 +185,30 @@ def test_a_touch_down_rising_beyond_the_legs_reach_gets_the_blend_at_once():
     assert lr.figures["iterations"] == 0
 
 
+def test_a_warm_landing_re_solve_whose_regularisation_runs_away_still_converges():
+    """Flip A's touch-down (a graph run, start 1.985 s) re-solved warm from the landings its lift-off
+    predicted: IPOPT's Hessian regularisation ran up to 1e16 and the warm attempt spent 60 iterations
+    (1.45 s) and failed, leaving it to the cold one.  With the regularisation capped
+    (landing.LANDING_IPOPT) the warm re-solve converges."""
+    from fslip_planner import landing as LD
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=1.0, motor_speed_scale=3.0,
+                      flywheel_torque=260.0)
+    s.jumping_reference()
+    prob = LandingProblem(s.robot.params, s.robot.L0)
+    nominal = [-0.30806038200023705, 0.8903295026250913, 0.8877094404628394, -2.121108063942203, 35.958599921605796]
+    prob.solve(np.array(nominal), warm=False)
+    v = [1.1973550918359306, -2.3249866668600325, 36.14033890474158]
+    for x, z in ((-0.30806038200023705, 0.8903295026250913), (-0.35806038200023704, 0.8714244574514871),
+                 (-0.4080603820002371, 0.8491610841557655), (-0.458060382000237, 0.8232669728858139),
+                 (-0.25806038200023707, 0.9060864536260688)):      # the predictions, in their order
+        prob.solve(np.array([x, z, *v]), warm=True)
+    td = np.array([-0.31387721401593216, 0.8882955120478608, 1.2130981714809548, -2.204814878199094,
+                   35.692976727901815])
+    sol = prob.solve(td, warm=True)                          # raises if the warm attempt fails
+    assert sol.iterations < LD.WARM_OPTS["ipopt.max_iter"]
+    assert np.allclose(sol.X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)
+
+
 def test_landing_is_planned_from_where_the_feet_came_down():
     """The landing re-solve starts from the measured COM-over-feet offset (support_center), and its COM
     reference ends over those feet: two touch-downs that differ only in where the feet are get

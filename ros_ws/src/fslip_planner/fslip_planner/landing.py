@@ -46,8 +46,12 @@ RISE_RESTITUTION = 0.2
 RISE_FLOOR = 0.2
 #: warm starts from a solved neighbour: barrier and bound pushes at 1e-3 (at 1e-6 a neighbour 0.05–0.14 m
 #: away in lean took 35–60 iterations, more than a cold solve's ~25; at 1e-3, 15–18); at most
-#: 60 iterations (at 30, flip C's re-solves fell back to cold ones, which landed worse)
-WARM_OPTS = dict(Jm.IPOPT_OPTS)
+#: 60 iterations (at 30, flip C's re-solves fell back to cold ones, which landed worse).  The Hessian's
+#: regularisation at most 1e8 (IPOPT's default 1e20): a warm re-solve of flip A whose regularisation ran
+#: up to 1e16 spent 1.45 s in 60 iterations and failed; capped, it converges in 16 (landings that never
+#: need that much are solved to the bit as before)
+LANDING_IPOPT = {"ipopt.max_hessian_perturbation": 1e8}
+WARM_OPTS = dict(Jm.IPOPT_OPTS, **LANDING_IPOPT)
 WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-3,
                   "ipopt.warm_start_mult_bound_push": 1e-3, "ipopt.mu_init": 1e-3,
                   "ipopt.warm_start_slack_bound_push": 1e-3, "ipopt.mu_strategy": "monotone",
@@ -60,7 +64,7 @@ WARM_SCALE = np.array([0.05, 0.05, 0.2, 0.2, 2.0])
 #: (:func:`predicted_touchdowns`): measured touch-downs came 0.17 m behind to 0.08 m ahead of it, and a
 #: warm start 0.05 m away takes ~15 IPOPT iterations, 0.14 m away as many as a cold one
 PREDICTED_LEAN_SHIFTS = (0.0, -0.05, -0.1, -0.15, 0.05)
-COLD_OPTS = dict(Jm.IPOPT_OPTS)
+COLD_OPTS = dict(Jm.IPOPT_OPTS, **LANDING_IPOPT)
 COLD_OPTS.update({"ipopt.max_iter": 300})
 
 
