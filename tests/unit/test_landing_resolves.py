@@ -1,0 +1,102 @@
+"""The landing re-solve at a touch-down (paper §III-C) in the cases around a rebound: a touch-down
+that still rises, one that rises beyond the leg's reach, a bounce after the landing, and a warm
+re-solve whose Hessian regularisation ran away."""
+import math
+
+import numpy as np
+
+from fslip_planner import plan as P
+from fslip_planner.landing import LandingProblem
+
+FLIP = dict(platform_height=0.5, apex_height=1.2, motor_speed_scale=3.0, flywheel_torque=260.0)
+
+
+def test_a_rebounds_rising_touch_down_gets_a_landing_plan():
+    """A touch-down after a rebound can come while the COM still rises (flip C: ż +0.59 m/s, the
+    momentum reversed).  The landing plan may go on rising at that rate, no faster, and comes to rest
+    (with the rise bound at 0.2 m/s from the first knot, the problem was infeasible and the landing got
+    the blend-to-standing fallback)."""
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=0.6, platform_height=0.5,
+                      motor_speed_scale=3.0, flywheel_torque=260.0)
+    s.jumping_reference()
+    p = s.robot.params
+    x0 = np.array([-0.055, 0.911, 0.272, 0.588, -6.711])     # measured offline, C from 2.1 s
+    sol = LandingProblem(p, s.robot.L0).solve(x0, warm=False)
+    X = sol.X
+    assert np.max(X[:, 3]) <= 0.588 + 1e-6
+    assert np.allclose(X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)
+    assert np.all(sol.Fz >= -1e-3) and np.all(np.abs(sol.Fx) <= p.mu * sol.Fz + 1e-3)
+
+
+def test_a_bounce_after_the_landing_is_re_solved_at_its_touch_down_without_predictions():
+    """A lift-off after the touch-down (a rebound) gets a level hop's flight plan, is not an aborted
+    flip, predicts no landings from the jump's lift-off, and its touch-down gets a landing plan."""
+    s = P.FlipSession("backflip", **FLIP)
+    jr = s.jumping_reference()
+    s.started(1.0)
+    lo = s.result.lift_off
+    t_lo = 1.0 + jr.duration
+    s.flight_reference(P.MeasuredState(t_lo, np.array([0.0, 0.0, 1.0]), np.array([lo["xdot"], 0.0, lo["zdot"]]),
+                                       lo["momentum"], lo["beta"], 0.0))
+    td = P.MeasuredState(t_lo + 0.6, np.array([0.05, 0.0, 0.95]), np.array([0.2, 0.0, -3.0]), lo["momentum"],
+                         -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    assert s.landing_reference(td).domain == 3
+    bounce = P.MeasuredState(td.t + 0.2, np.array([0.0, 0.0, 0.9]), np.array([0.0, 0.0, 0.3]), 2.0,
+                             -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    fr = s.flight_reference(bounce)
+    assert s.bounced and not s.aborted and fr.figures["aborted"] == 0.0
+    assert s.predict_landing(bounce) is None
+    again = P.MeasuredState(bounce.t + 0.05, np.array([0.0, 0.0, 0.88]), np.array([0.0, 0.0, -0.2]), 2.0,
+                            -2 * math.pi, 0.0, support_center=np.array([0.0, 0.0, 0.0]))
+    lr = s.landing_reference(again)
+    assert lr.domain == 3 and lr.figures["fallback"] == 0.0
+
+
+def test_a_touch_down_rising_beyond_the_legs_reach_gets_the_blend_at_once():
+    """A rebound's foot can brush the ground while the COM still rises at 0.92 m/s (flip C from 1.2 s):
+    even with no leg force the COM rises beyond the leg's reach, so no landing plan exists; the planner
+    answers with its blend to standing without trying the solves that cannot succeed (they took 2.4 s).
+    A sinking touch-down, or one rising within reach, is planned as before."""
+    from fslip_planner.landing import rise_beyond_reach
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=0.6, platform_height=0.5,
+                      motor_speed_scale=3.0, flywheel_torque=260.0)
+    s.jumping_reference()
+    p = s.robot.params
+    brush = np.array([-0.109, 0.907, 0.185, 0.92, 1.941])     # measured offline, C from 1.2 s, no noise
+    assert rise_beyond_reach(brush, p)
+    assert not rise_beyond_reach(np.array([-0.109, 0.907, 0.185, 0.3, 1.941]), p)
+    assert not rise_beyond_reach(np.array([-0.116, 0.906, 0.64, -3.886, 27.0]), p)
+    s.started(1.0)
+    lo = s.result.lift_off
+    s.flight_reference(P.MeasuredState(1.0 + s.result.solution.T, np.array([0.0, 0.0, 1.5]),
+                                       np.array([lo["xdot"], 0.0, lo["zdot"]]), lo["momentum"], lo["beta"], 0.0))
+    com = np.array([0.0, 0.0, 0.95])
+    td = P.MeasuredState(3.0, com, np.array([0.185, 0.0, 0.92]), 1.941, 2 * math.pi, 0.0,
+                         support_center=com - np.array([-0.109, 0.0, 0.907]))
+    lr = s.landing_reference(td)
+    assert lr.domain == 3 and lr.figures["fallback"] == 3.0 and lr.figures["rise_beyond_reach"] == 1.0
+    assert lr.figures["iterations"] == 0
+
+
+def test_a_warm_landing_re_solve_whose_regularisation_runs_away_still_converges():
+    """Flip A's touch-down (a graph run, start 1.985 s) re-solved warm from the landings its lift-off
+    predicted: IPOPT's Hessian regularisation ran up to 1e16 and the warm attempt spent 60 iterations
+    (1.45 s) and failed, leaving it to the cold one.  With the regularisation capped
+    (landing.LANDING_IPOPT) the warm re-solve converges."""
+    from fslip_planner import landing as LD
+    s = P.FlipSession("frontflip", apex_height=1.2, forward_distance=1.0, motor_speed_scale=3.0,
+                      flywheel_torque=260.0)
+    s.jumping_reference()
+    prob = LandingProblem(s.robot.params, s.robot.L0)
+    nominal = [-0.30806038200023705, 0.8903295026250913, 0.8877094404628394, -2.121108063942203, 35.958599921605796]
+    prob.solve(np.array(nominal), warm=False)
+    v = [1.1973550918359306, -2.3249866668600325, 36.14033890474158]
+    for x, z in ((-0.30806038200023705, 0.8903295026250913), (-0.35806038200023704, 0.8714244574514871),
+                 (-0.4080603820002371, 0.8491610841557655), (-0.458060382000237, 0.8232669728858139),
+                 (-0.25806038200023707, 0.9060864536260688)):      # the predictions, in their order
+        prob.solve(np.array([x, z, *v]), warm=True)
+    td = np.array([-0.31387721401593216, 0.8882955120478608, 1.2130981714809548, -2.204814878199094,
+                   35.692976727901815])
+    sol = prob.solve(td, warm=True)                          # raises if the warm attempt fails
+    assert sol.iterations < LD.WARM_OPTS["ipopt.max_iter"]
+    assert np.allclose(sol.X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)
