@@ -124,6 +124,11 @@ def pelvis_state(odom):
                        angular_velocity=np.array([w.x, w.y, w.z]))
 
 
+#: the landing re-solve's attempts (FlipSession.landing_reference, figures 'fallback')
+LANDING_ATTEMPTS = ('the warm re-solve', 'a cold solve', 'a cold solve with the momentum left free',
+                    'the blend to standing')
+
+
 class PlannerNode:
     def __init__(self):
         self.node = rclpy.create_node('planner_node')
@@ -332,6 +337,11 @@ class PlannerNode:
                                    if ev.event == ContactEvent.LIFT_OFF else None)
         if ev.event == ContactEvent.TOUCH_DOWN:
             self.turns.touch_down(state.pelvis_pitch)
+            attempt = int(ref.figures.get('fallback', 0)) if ref is not None else 0
+            if attempt:
+                why = ("the touch-down rises beyond the leg's reach" if ref.figures.get('rise_beyond_reach')
+                       else 'the attempts before it failed')
+                self.node.get_logger().warn(f'landing plan from {LANDING_ATTEMPTS[attempt]}: {why}')
             if ref is not None and ref.figures.get('predictions_left'):
                 self.node.get_logger().info(
                     f'{ref.figures["predictions_left"]:.0f} landing predictions left from the lift-off solved '
