@@ -100,3 +100,13 @@ def test_a_warm_landing_re_solve_whose_regularisation_runs_away_still_converges(
     sol = prob.solve(td, warm=True)                          # raises if the warm attempt fails
     assert sol.iterations < LD.WARM_OPTS["ipopt.max_iter"]
     assert np.allclose(sol.X[-1, [0, 2, 3, 4]], 0.0, atol=1e-6)
+
+
+def test_planner_node_says_which_attempt_answered_a_landing_and_why():
+    """planner_node's warning for a landing reference from a fallback attempt (the figures of
+    FlipSession.landing_reference); nothing when the warm re-solve answered."""
+    from fslip_planner.landing import landing_attempt_note
+    assert landing_attempt_note({"fallback": 0.0}) is None and landing_attempt_note({}) is None
+    assert landing_attempt_note({"fallback": 1.0}) == "landing plan from a cold solve: the attempts before it failed"
+    assert landing_attempt_note({"fallback": 3.0, "rise_beyond_reach": 1.0}) == (
+        "landing plan from the blend to standing: the touch-down rises beyond the leg's reach")

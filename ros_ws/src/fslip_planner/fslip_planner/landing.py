@@ -181,6 +181,22 @@ def rise_beyond_reach(x0, p: F.FSLIPParams) -> bool:
     return z + zd * zd / (2.0 * p.g) > math.sqrt(max(p.L_max ** 2 - x_near ** 2, 0.0))
 
 
+#: the landing re-solve's attempts in their order (FlipSession.landing_reference, figures 'fallback')
+LANDING_ATTEMPTS = ("the warm re-solve", "a cold solve", "a cold solve with the momentum left free",
+                    "the blend to standing")
+
+
+def landing_attempt_note(figures: dict) -> str | None:
+    """What planner_node says when a landing reference came from a fallback attempt (which, and why);
+    None when the warm re-solve answered."""
+    attempt = int(figures.get("fallback", 0))
+    if attempt <= 0:
+        return None
+    why = ("the touch-down rises beyond the leg's reach" if figures.get("rise_beyond_reach")
+           else "the attempts before it failed")
+    return f"landing plan from {LANDING_ATTEMPTS[attempt]}: {why}"
+
+
 def mirrored_touchdown(lift_off, platform):
     """The touch-down a jumping plan predicts, FSLIP [x, z, ẋ, ż, H] with the foot at the origin: the
     lift-off's lean mirrored by the foot placement (§IV-B) on a leg of the lift-off length, ẋ and H kept

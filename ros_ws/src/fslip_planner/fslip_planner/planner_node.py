@@ -35,6 +35,7 @@ from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .feasibility import com_of_standing
+from .landing import landing_attempt_note
 from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
 from .pitch_turns import PitchTurns
 from .plan_geometry import reference_geometry
@@ -123,10 +124,6 @@ def pelvis_state(odom):
                        orientation=np.array([q.x, q.y, q.z, q.w]), linear_velocity=np.array([v.x, v.y, v.z]),
                        angular_velocity=np.array([w.x, w.y, w.z]))
 
-
-#: the landing re-solve's attempts (FlipSession.landing_reference, figures 'fallback')
-LANDING_ATTEMPTS = ('the warm re-solve', 'a cold solve', 'a cold solve with the momentum left free',
-                    'the blend to standing')
 
 
 class PlannerNode:
@@ -337,11 +334,9 @@ class PlannerNode:
                                    if ev.event == ContactEvent.LIFT_OFF else None)
         if ev.event == ContactEvent.TOUCH_DOWN:
             self.turns.touch_down(state.pelvis_pitch)
-            attempt = int(ref.figures.get('fallback', 0)) if ref is not None else 0
-            if attempt:
-                why = ("the touch-down rises beyond the leg's reach" if ref.figures.get('rise_beyond_reach')
-                       else 'the attempts before it failed')
-                self.node.get_logger().warn(f'landing plan from {LANDING_ATTEMPTS[attempt]}: {why}')
+            said = landing_attempt_note(ref.figures) if ref is not None else None
+            if said:
+                self.node.get_logger().warn(said)
             if ref is not None and ref.figures.get('predictions_left'):
                 self.node.get_logger().info(
                     f'{ref.figures["predictions_left"]:.0f} landing predictions left from the lift-off solved '
