@@ -365,12 +365,10 @@ def test_standing_momentum_weight_gives_way_while_the_com_is_off_the_feet():
     ctl.ground.foot_anchor = anchors
 
 
-def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_downs_re_solve():
-    """LANDING with the planner's landing reference (default ``rebound_keeps_landing_plan``): a LIFT_OFF
-    (the feet left the ground under the plan) is recorded as a rebound and the plan goes on, past its end
-    while the feet are in the air; the re-solve of the next touch-down replaces it and is tracked from its
-    own start to its end; no fallback."""
-    sim, ctl = Simulator(), Controller(export_mjcf(), track_hop_landing_reference=True)
+def _tracking_a_landing_plan(**cfg):
+    """A controller in LANDING tracking a 1 s landing reference (after a hop, ``track_hop_landing_reference``):
+    (sim, ctl, state converter, the reference's times, the reference, tick() at the sim's time)."""
+    sim, ctl = Simulator(), Controller(export_mjcf(), track_hop_landing_reference=True, **cfg)
     sc = StateConverter(ctl.dyn)
     ts = np.linspace(0.0, 1.0, 11)
     land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)
@@ -382,6 +380,15 @@ def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_
     ctl._enter(Domain.LANDING, sim.time)
     ctl.set_reference(land)
     tick()
+    return sim, ctl, sc, ts, land, tick
+
+
+def test_a_rebound_under_the_tracked_landing_plan_keeps_it_until_the_next_touch_downs_re_solve():
+    """LANDING with the planner's landing reference (default ``rebound_keeps_landing_plan``): a LIFT_OFF
+    (the feet left the ground under the plan) is recorded as a rebound and the plan goes on, past its end
+    while the feet are in the air; the re-solve of the next touch-down replaces it and is tracked from its
+    own start to its end; no fallback."""
+    sim, ctl, sc, ts, land, tick = _tracking_a_landing_plan()
     ctl.on_contact_event(0, sim.time)              # LIFT_OFF while the plan is tracked
     tick()
     assert ctl.domain == Domain.LANDING and ctl.refs.get(Domain.LANDING) is land
@@ -404,19 +411,7 @@ def test_a_rebound_under_the_tracked_landing_plan_hands_over_to_the_own_landing_
     """With ``rebound_keeps_landing_plan`` off: a LIFT_OFF under the tracked plan drops it for the
     controller's own landing, says why (``landing_fallback``), and keeps the re-solve of the next
     touch-down as ``landing_plan`` only; the next flight clears it."""
-    sim = Simulator()
-    ctl = Controller(export_mjcf(), track_hop_landing_reference=True, rebound_keeps_landing_plan=False)
-    sc = StateConverter(ctl.dyn)
-    ts = np.linspace(0.0, 1.0, 11)
-    land = SampledReference(Domain.LANDING, ts, ["L"], np.full(11, ctl.cfg.L_stand or 0.86), start_time=0.0)
-
-    def tick():
-        q, v = sc.from_simulator(sim)
-        ctl.compute(q, v, sim.time)
-    tick()
-    ctl._enter(Domain.LANDING, sim.time)
-    ctl.set_reference(land)
-    tick()
+    sim, ctl, sc, ts, land, tick = _tracking_a_landing_plan(rebound_keeps_landing_plan=False)
     assert ctl.refs.get(Domain.LANDING) is land and ctl.landing_fallback is None
     ctl.on_contact_event(0, sim.time)              # LIFT_OFF while the plan is tracked
     tick()

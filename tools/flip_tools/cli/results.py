@@ -48,24 +48,26 @@ def finish(out: Path, graph: Graph | None, report: dict, extra: dict, kind: str 
     return summary
 
 
-def landing_fallbacks(log_file: Path) -> list | None:
-    """The landings the controller's own landing did instead of the planner's tracked landing plan,
-    from tsc_node's log: [{"t": s, "reason": "rebound" | "no landing plan"}]; None without the log."""
+def _log_matches(log_file: Path, pattern: str) -> list | None:
+    """The regex matches of ``pattern`` in a node's log, in order; None without the log."""
     import re
     if not log_file.is_file():
         return None
-    pat = re.compile(r"landing fallback: own landing from t=([-0-9.]+) s \(([^)]*)\)")
-    return [{"t": float(m.group(1)), "reason": m.group(2)}
-            for m in pat.finditer(log_file.read_text(errors="replace"))]
+    return list(re.finditer(pattern, log_file.read_text(errors="replace")))
+
+
+def landing_fallbacks(log_file: Path) -> list | None:
+    """The landings the controller's own landing did instead of the planner's tracked landing plan,
+    from tsc_node's log: [{"t": s, "reason": "rebound" | "no landing plan"}]; None without the log."""
+    found = _log_matches(log_file, r"landing fallback: own landing from t=([-0-9.]+) s \(([^)]*)\)")
+    return None if found is None else [{"t": float(m.group(1)), "reason": m.group(2)} for m in found]
 
 
 def landing_rebounds(log_file: Path) -> list | None:
     """The times (s) the feet left the ground under the tracked landing plan and the plan went on until
     the next touch-down's re-solve (tsc_node's 'rebound at t=' lines); None without the log."""
-    import re
-    if not log_file.is_file():
-        return None
-    return [float(m.group(1)) for m in re.finditer(r"rebound at t=([-0-9.]+) s", log_file.read_text(errors="replace"))]
+    found = _log_matches(log_file, r"rebound at t=([-0-9.]+) s")
+    return None if found is None else [float(m.group(1)) for m in found]
 
 
 def print_summary(summary: dict, keys=None) -> None:

@@ -125,7 +125,6 @@ def pelvis_state(odom):
                        angular_velocity=np.array([w.x, w.y, w.z]))
 
 
-
 class PlannerNode:
     def __init__(self):
         self.node = rclpy.create_node('planner_node')
