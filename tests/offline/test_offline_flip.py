@@ -89,6 +89,40 @@ def test_backflip_lands_and_stands(backflip):
     assert backflip["pitch"][-1] == pytest.approx(-2 * math.pi, abs=0.1)   # one whole turn, backwards
 
 
+def _touch_down_lean_and_flywheel_peaks(r):
+    """(COM x - feet x at the first touch-down after the lift-off, the flywheel's peak speed in the
+    flight and in the landing, rad/s)."""
+    lo, td = of.lift_off_touch_down(r["events"])
+    st = next(s for k, s in r["event_states"] if k == 1)
+    dom, fw = np.asarray(r["dom"]), np.abs(np.asarray(r["fw"]))
+    return float(st.com[0] - st.support_center[0]), fw[dom == 2].max(), fw[dom == 3].max()
+
+
+@pytest.mark.parametrize("preplaced", [False, True])
+def test_backflip_legs_preplaced_touch_down_where_the_plan_puts_the_feet(backflip, preplaced):
+    """Placed after T1 only, the backflip's legs swing while the flywheel stops the body at its torque
+    limit and land ahead of the plan's placement (COM behind the feet, where the plan puts it ahead):
+    the landing grows the momentum into the flywheel (~30 % above its flight peak).  Turned to their
+    touch-down angle on the pelvis during the tuck's extension (``flight_legs_preplaced``) they touch
+    down with the COM ahead of the feet and the landing takes the momentum out from the start."""
+    if preplaced:
+        sim, _ = robot()
+        ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
+                         flight_legs_preplaced=True)
+        r = of.run("backflip", seconds=10.5, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.3,
+                   motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+        assert of.outcome(r, "backflip") == "landed"
+    else:
+        r = backflip
+    lean, fw_flight, fw_landing = _touch_down_lean_and_flywheel_peaks(r)
+    mirrored = -r["session"].result.lift_off["x"]        # the plan's COM - foot at the touch-down
+    assert mirrored > 0.0
+    if preplaced:
+        assert lean == pytest.approx(mirrored, abs=0.06) and fw_landing < 1.03 * fw_flight
+    else:
+        assert lean < 0.0 and fw_landing > 1.2 * fw_flight
+
+
 def test_backflip_on_the_flywheel_momentum_output_touches_down_as_planned():
     """FLIGHT on eq. (momentumTrans)'s flywheel momentum, the paper's Y^F_1 (``flight_pitch_output``
     False), with its desired rate: the pelvis touches down within 3 deg of the flight plan's final pitch,

@@ -149,3 +149,52 @@ def test_flight_reference_is_sampled_flight_lead_ahead():
         want = ref.sample(t + lead)["phi_pitch"]
         assert des[k].value[0] == pytest.approx(want[0]) and des[k].d_value[0] == pytest.approx(want[1])
     assert ref.sample(0.25)["phi_pitch"][0] != pytest.approx(ref.sample(0.2)["phi_pitch"][0])
+
+
+def _wrapped(a):
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_preplaced_legs_turn_to_their_touch_down_angle_on_the_pelvis_between_t1_half_and_t1(sign):
+    """``flight_legs_preplaced``: the hip pitches leave the joint hold at T1/2 and each leg's angle
+    follows a min-jerk from where it is then (no step) to the touch-down placement, which it reaches at
+    T1 with the value and rate that the placement after T1 asks (no step there either); off, the hold
+    runs to T1 as before."""
+    sim = Simulator()
+    w0 = launch(sim, sign, T_FLIGHT, 0.4)
+    ref = flight_reference(sign, w0, T_FLIGHT)
+    T1 = ref.parameters["T1"]
+    for on in (True, False):
+        ctl = Controller(export_mjcf(), flight_legs_preplaced=on, flight_lead=0.0)
+        sc = StateConverter(ctl.dyn)
+        ctl._enter(Domain.FLIGHT, 0.0)
+        ctl.set_reference(ref)
+        q, v = sc.from_simulator(sim)
+        ctl.dyn.update(q, v)
+        ctl._update_pitch()
+        fl = ctl.flight
+
+        def task(t):
+            _, outs, des = ctl._task(t)
+            return outs, des
+
+        outs, _ = task(0.0)                                       # the lift-off posture is taken here
+        assert fl.o_j_pre in outs and fl.o_beta[0] not in outs
+        outs, des = task(0.5 * T1)
+        if not on:
+            assert fl.o_j_pre in outs and fl.o_beta[0] not in outs
+            continue
+        assert fl.o_j_mid in outs and fl.o_j_pre not in outs and "left_hip_pitch" not in fl.o_j_mid.joints
+        k = outs.index(fl.o_beta[0])
+        y = fl.o_beta[0].evaluate(ctl.dyn)[0][0]
+        assert des[k].value[0] == pytest.approx(y, abs=1e-12)      # starts where the leg is
+        _, end = task(T1 - 1e-9)
+        outs_after, after = task(T1)
+        ka = outs_after.index(fl.o_beta[0])
+        assert fl.o_j_post in outs_after
+        assert _wrapped(end[k].value[0] - after[ka].value[0]) == pytest.approx(0.0, abs=1e-6)
+        assert end[k].d_value[0] == pytest.approx(after[ka].d_value[0], abs=1e-6)
+        # and that placement is the touch-down's leg angle on the pelvis: beta + theta = -beta_liftoff + theta_T
+        th_T = ref.sample(ref.duration)["phi_pitch"][0]
+        assert _wrapped(after[ka].value[0] + ctl.pitch - (-ref.parameters["beta_liftoff"] + th_T)) == pytest.approx(0.0, abs=1e-9)

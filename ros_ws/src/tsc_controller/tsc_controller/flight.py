@@ -9,17 +9,20 @@ from .config import ControllerConfig
 from .domain_outputs import _mk
 from .dynamics import SIDES, Dynamics
 from .reference import Domain
+from .profiles import quintic
 from .tsc import Desired
 
 MOTOR_HELD_PRE_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "hip_pitch", "foot"))
+MOTOR_HELD_MID = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw", "foot"))
 MOTOR_HELD_POST_T1 = tuple(f"{s}_{j}" for s in SIDES for j in ("hip_roll", "hip_yaw"))
 
 
 class Flight:
     """FLIGHT: the flywheel's momentum (eq. Y^F_1) or, with a planned pelvis pitch, that pitch; per-leg
     length; before T1 the motor joints but the knees held at their lift-off values (and, in a
-    somersault, the pelvis axis along world y), after T1 the feet placed for the touch-down (leg
-    angle, toe pitch) and the hips' roll and yaw held (eq. Y^F_2)."""
+    somersault, the pelvis axis along world y; with ``flight_legs_preplaced`` the hip pitches give way
+    to the leg angles from T1/2), after T1 the feet placed for the touch-down (leg angle, toe pitch)
+    and the hips' roll and yaw held (eq. Y^F_2)."""
     domain = Domain.FLIGHT
 
     def __init__(self, dyn: Dynamics, cfg: ControllerConfig, pitch):
@@ -36,6 +39,7 @@ class Flight:
         self.o_toe = [_mk(O.FootPitch, f"toe_{s}", g, "toe_pitch", sides=(s,)) for s in SIDES]
         self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
         self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
+        self.o_j_mid = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_MID)
         self.state = None                # the lift-off posture and momentum (the first FLIGHT tick's)
 
     def enter(self):
@@ -50,7 +54,7 @@ class Flight:
             q_pre = self.o_j_pre.evaluate(dyn)[0]
             self.state = dict(
                 H=self.o_Hfw.evaluate(dyn)[0], L=[o.evaluate(dyn)[0] for o in self.o_Lleg],
-                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0],
+                q_pre=q_pre, q_post=self.o_j_post.evaluate(dyn)[0], q_mid=self.o_j_mid.evaluate(dyn)[0],
                 beta=[o.evaluate(dyn)[0] for o in self.o_beta])
         f = self.state
         smp = ref.sample(tau) if ref is not None else {}
@@ -73,27 +77,28 @@ class Flight:
             outs, des = [self.o_Hfw], [Desired(*self._momentum_transmission(smp, pitch), z)]
         outs = outs + self.o_Lleg
         des = des + [d("L", f["L"][k]) for k in range(2)]
+        bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
+        on_pelvis = "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis
+        preplace = (somersault and on_pelvis and bplus is not None and self.cfg.flight_legs_preplaced
+                    and tau >= 0.5 * T1)
         if tau < T1:
             if somersault and self.o_axis.weight > 0.0:          # see config.DEFAULT_GAINS["axis"]
                 outs.append(self.o_axis)
                 des.append(Desired(self._z2, self._z2, self._z2))
-            outs.append(self.o_j_pre)
-            des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
+            if preplace:
+                outs += self.o_beta
+                des += self._legs_preplaced(f, ref, tau, T1, pitch, -bplus)
+                outs.append(self.o_j_mid)
+                des.append(Desired(f["q_mid"], np.zeros(len(f["q_mid"])), np.zeros(len(f["q_mid"]))))
+            else:
+                outs.append(self.o_j_pre)
+                des.append(Desired(f["q_pre"], np.zeros(len(f["q_pre"])), np.zeros(len(f["q_pre"]))))
         else:
-            bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
             # the foot placement is a world leg angle for the pelvis at its final pitch theta_T; with
             # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
             off = np.zeros(3)
-            if "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis:
-                if f.get("ref") is not ref:                  # final pitch of this flight reference
-                    f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
-                th_T = f["th_T"]
-                R = dyn.data.oMi[dyn.base_jid].rotation
-                w_p = self._pelvis_pitch_rate()
-                # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction):
-                # without it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20
-                # against ~80 rad/s^2) and land with the feet far ahead
-                a_p = -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
+            if on_pelvis:
+                th_T, w_p, a_p = self._pelvis_pitch_terms(f, ref, u_prev)
                 off = np.array([pitch - th_T, w_p, a_p])
             w_beta = self.cfg.somersault_beta_weight if somersault else self._beta_w0
             for k in range(2):
@@ -106,6 +111,43 @@ class Flight:
             outs.append(self.o_j_post)
             des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
         return outs, des
+
+    def _pelvis_pitch_terms(self, f, ref, u_prev):
+        """(theta_T, the pelvis pitch rate, its acceleration from the last flywheel torque): the terms by
+        which the foot placement rides on the pelvis (``flight_legs_on_pelvis``)."""
+        dyn = self.dyn
+        if f.get("ref") is not ref:                  # final pitch of this flight reference
+            f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
+        if u_prev is None:
+            return f["th_T"], self._pelvis_pitch_rate(), None
+        R = dyn.data.oMi[dyn.base_jid].rotation
+        # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction): without
+        # it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20 against ~80 rad/s^2)
+        # and land with the feet far ahead
+        a_p = -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
+        return f["th_T"], self._pelvis_pitch_rate(), a_p
+
+    def _legs_preplaced(self, f, ref, tau, T1, pitch, b):
+        """Leg angles over T1/2 .. T1 (``flight_legs_preplaced``): each leg's angle on the pelvis,
+        beta + theta, goes min-jerk from its value at T1/2 to the touch-down's, b + theta_T (eq. Y^F_2's
+        placement on the pelvis at its final pitch), so that after T1 the placement holds rather than
+        swings the legs while the flywheel stops the body.  The pelvis's acceleration is the plan's:
+        in the cruise the flywheel's torque goes into the tuck's extension, not into the pelvis."""
+        th_T, w_p, _ = self._pelvis_pitch_terms(f, ref, None)
+        a_p = float(ref.sample(tau)["phi_pitch"][2])
+        y = [float(o.evaluate(self.dyn)[0][0]) for o in self.o_beta]
+        if f.get("mid") is None:
+            f["mid"] = [yk + pitch for yk in y]
+        out = []
+        for k, o in enumerate(self.o_beta):
+            o.weight = self.cfg.somersault_beta_weight
+            rel0 = f["mid"][k]
+            d_rel = (b + th_T - rel0 + np.pi) % (2.0 * np.pi) - np.pi
+            v, dv, ddv = quintic(rel0, rel0 + d_rel, 0.5 * T1, tau - 0.5 * T1)
+            target = float(v) - pitch
+            target = y[k] + (target - y[k] + np.pi) % (2.0 * np.pi) - np.pi      # beta is an atan2
+            out.append(Desired(np.array([target]), np.array([float(dv) - w_p]), np.array([float(ddv) - a_p])))
+        return out
 
     def _rest_inertia(self):
         """Centroidal pitch inertia of the robot without the flywheel's spin inertia (sum_i I_i)."""
