@@ -202,7 +202,7 @@ def test_forward_frontflip_lands_and_stands():
     x0 = float(sim.com_position()[0])
     r = of.run("frontflip", seconds=12.0, start=0.5, sim=sim, controller=ctl, every=10, apex_height=1.2,
                forward_distance=1.0, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
-    ev, t, pitch = r["events"], r["t"], r["pitch"]
+    ev, pitch = r["events"], r["pitch"]
     lo = next(tt for k, tt in ev if k == 0)
     td = next(tt for k, tt in ev if k == 1 and tt > lo)
     assert td - lo > 0.4
