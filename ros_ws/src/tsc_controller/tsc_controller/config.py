@@ -149,9 +149,9 @@ class ControllerConfig:
     # at the world angle at once they throw the pelvis round (docs/tuning.md)
     flight_legs_on_pelvis: bool = True
     # FLIGHT of a somersault: the hips turn the legs to their touch-down angle on the pelvis during the
-    # tuck's extension (T1/2 .. T1) instead of after T1.  Off: it lands the backflip with the feet where
-    # the plan puts them and no momentum growth in the landing, but A, C and D land less often
-    # (docs/tuning.md, flight_legs_preplaced)
+    # tuck's extension (T1/2 .. T1) instead of after T1.  On, the backflip lands with the feet where the
+    # plan puts them and no momentum growth in the landing; off by default, since A, C and D then land
+    # less often (docs/tuning.md, flight_legs_preplaced)
     flight_legs_preplaced: bool = False
     # FLIGHT of a somersault after T1: the leg angles' weight (gains' beta_leg weight otherwise).  The foot
     # placement outranks the pelvis pitch (weight 10), so the QP does not swing the legs to help a

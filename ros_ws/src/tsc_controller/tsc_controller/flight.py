@@ -98,8 +98,8 @@ class Flight:
             # ``flight_legs_on_pelvis`` it is offset by (theta - theta_T) and its rates (see the config)
             off = np.zeros(3)
             if on_pelvis:
-                th_T, w_p, a_p = self._pelvis_pitch_terms(f, ref, u_prev)
-                off = np.array([pitch - th_T, w_p, a_p])
+                off = np.array([pitch - self._final_pitch(f, ref), self._pelvis_pitch_rate(),
+                                self._flywheel_pitch_acc(u_prev)])
             w_beta = self.cfg.somersault_beta_weight if somersault else self._beta_w0
             for k in range(2):
                 b = -(bplus if bplus is not None else f["beta"][k][0])
@@ -112,20 +112,18 @@ class Flight:
             des.append(Desired(f["q_post"], np.zeros(len(f["q_post"])), np.zeros(len(f["q_post"]))))
         return outs, des
 
-    def _pelvis_pitch_terms(self, f, ref, u_prev):
-        """(theta_T, the pelvis pitch rate, its acceleration from the last flywheel torque): the terms by
-        which the foot placement rides on the pelvis (``flight_legs_on_pelvis``)."""
-        dyn = self.dyn
-        if f.get("ref") is not ref:                  # final pitch of this flight reference
+    def _final_pitch(self, f, ref):
+        """theta_T, the pelvis pitch at the end of this flight reference (read once per reference)."""
+        if f.get("ref") is not ref:
             f["ref"], f["th_T"] = ref, ref.sample(ref.duration)["phi_pitch"][0]
-        if u_prev is None:
-            return f["th_T"], self._pelvis_pitch_rate(), None
-        R = dyn.data.oMi[dyn.base_jid].rotation
-        # pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction): without
-        # it the legs lag the pelvis's deceleration by ~0.45 rad (kp 100, kd 20 against ~80 rad/s^2)
-        # and land with the feet far ahead
-        a_p = -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
-        return f["th_T"], self._pelvis_pitch_rate(), a_p
+        return f["th_T"]
+
+    def _flywheel_pitch_acc(self, u_prev):
+        """Pelvis (with legs) pitch acceleration from the last flywheel torque (its reaction): without it
+        the legs lag the pelvis's deceleration after T1 by ~0.45 rad (kp 100, kd 20 against ~80 rad/s^2)
+        and land with the feet far ahead."""
+        R = self.dyn.data.oMi[self.dyn.base_jid].rotation
+        return -float(u_prev[-1]) * float(R[1] @ self.o_Hfw._a) / max(self._rest_inertia(), 1e-3)
 
     def _legs_preplaced(self, f, ref, tau, T1, pitch, b):
         """Leg angles over T1/2 .. T1 (``flight_legs_preplaced``): each leg's angle on the pelvis,
@@ -133,7 +131,7 @@ class Flight:
         placement on the pelvis at its final pitch), so that after T1 the placement holds rather than
         swings the legs while the flywheel stops the body.  The pelvis's acceleration is the plan's:
         in the cruise the flywheel's torque goes into the tuck's extension, not into the pelvis."""
-        th_T, w_p, _ = self._pelvis_pitch_terms(f, ref, None)
+        th_T, w_p = self._final_pitch(f, ref), self._pelvis_pitch_rate()
         a_p = float(ref.sample(tau)["phi_pitch"][2])
         y = [float(o.evaluate(self.dyn)[0][0]) for o in self.o_beta]
         if f.get("mid") is None:
