@@ -9,7 +9,7 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 
     .venv/bin/python scripts/bench_landings.py [--kinds backflip frontflip] [--starts 0.3 0.4 ...]
         [--seconds 9] [--controller JSON] [--motor-speed-scale 3] [--flywheel-torque 260] [--apex 1.3]
-        [--distance 0] [--platform 0 | --ground-offset 0] [--noise 0] [--no-flight-check] [--states]
+        [--distance 0] [--platform 0 | --ground-offset 0] [--noise 0] [--no-flight-check] [--knee-tangential] [--states]
 
 (defaults: the somersault robot of the README and 30 start times).  A robot that has settled (from
 ~1.3 s on) repeats its run from every later start time to the bit, so the count over start times
@@ -27,7 +27,7 @@ import statistics
 import sys
 from concurrent.futures import ProcessPoolExecutor
 
-from flip_tools.cli.options import flight_check_opt
+from flip_tools.cli.options import flight_check_opt, knee_model_opt
 from flip_tools.flip_request import request_distance
 from flip_tools.perturb import add_noise_option
 from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
@@ -41,7 +41,8 @@ EXPECTED = EXPECTED_TURN
 
 def one(kind: str, start: float, seconds: float, controller: str, scale: float, torque: float, apex: float,
         distance: float = 0.0, platform: float = 0.0, ground_offset: float = 0.0, x_start: float | None = None,
-        heading: list | None = None, noise: float = 0.0, flight_check: bool = True) -> dict:
+        heading: list | None = None, noise: float = 0.0, flight_check: bool = True,
+        knee_tangential: bool = False) -> dict:
     import numpy as np
 
     from flip_tools import offline as of
@@ -61,7 +62,7 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     r = of.run(kind, seconds=seconds, start=start, sim=sim, controller=ctl, every=10, apex_height=apex, x_start=x_start,
                heading=heading, plant=plant,
                forward_distance=distance, platform_height=platform, motor_speed_scale=scale, flywheel_torque=torque,
-               flight_check=flight_check)
+               flight_check=flight_check, knee_tangential=knee_tangential)
     lo, td = lift_off_touch_down(r["events"])
     out = {"kind": kind, "start": start, "fell_at": r["fell"], "flight_s": None, "td_rotation_deg": None,
            "td_axis_tilt_deg": None}
@@ -115,7 +116,8 @@ def refusal(a) -> str | None:
         try:
             FlipSession(k, apex_height=a.apex, forward_distance=a.distance, platform_height=a.platform,
                         motor_speed_scale=a.motor_speed_scale, flywheel_torque=a.flywheel_torque,
-                        flight_check=not a.no_flight_check).jumping_reference()
+                        flight_check=not a.no_flight_check,
+                        knee_tangential=a.knee_tangential).jumping_reference()
         except InfeasibleRequest as e:
             return f"{k}: the planner refuses the request: {e}"
     return None
@@ -187,6 +189,7 @@ def parse_args() -> argparse.Namespace:
                     help="with --x-start: the heading frame the plans start in (a run's summary.json planner.heading)")
     add_noise_option(ap, "start time")
     flight_check_opt(ap)                         # --no-flight-check, as flip run's
+    knee_model_opt(ap)                           # --knee-tangential, as flip run's
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
@@ -210,13 +213,14 @@ def main() -> int:
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
         futs = [pool.submit(one, k, s, a.seconds, a.controller, a.motor_speed_scale, a.flywheel_torque, a.apex,
                             a.distance, a.platform, a.ground_offset, a.x_start, a.heading, a.noise,
-                            not a.no_flight_check)
+                            not a.no_flight_check, a.knee_tangential)
                 for k, s in jobs]
         rows = [f.result() for f in futs]
     print(f"offline flips (flip_tools.offline): motor speed scale {a.motor_speed_scale}, flywheel "
           f"{a.flywheel_torque} N*m, apex {a.apex} m, distance {a.distance} m, platform {a.platform} m, "
           f"ground offset {a.ground_offset} m, {a.seconds} s each, controller {a.controller or '{}'}, "
-          f"read noise {a.noise}" + (", planner's flight-torque check off" if a.no_flight_check else ""))
+          f"read noise {a.noise}" + (", planner's flight-torque check off" if a.no_flight_check else "")
+          + (", knee torque of the tangential force planned" if a.knee_tangential else ""))
     print("| flip | start s | landed | at rest | fell at s | flight s | touch-down rotation deg | axis tilt deg "
           "| landing re-solve ms (iterations, attempt) | own landing | flywheel peak rpm: flight / landing |")
     print("|------|---------|--------|---------|-----------|----------|-------------------------|---------------"

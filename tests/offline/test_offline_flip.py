@@ -336,6 +336,36 @@ def test_a_platform_frontflip_that_rebounds_tracks_the_re_solve_of_its_next_touc
     of.assert_stands(sim, ctl, z_stand)
 
 
+def test_a_platform_frontflip_planned_with_the_knees_tangential_load_lands_with_a_slower_flywheel():
+    """Flip C with the same read noise and start as the rebound test above, planned with
+    ``knee_tangential`` (the knee torque of the tangential foot force counted): it lands on the tracked
+    plans (no own landing, no fallback attempt) and its flywheel turns slower in the landing than in the
+    flight (paper: the landing plan takes the momentum out through the ground; 2,924 / 2,405 rpm
+    measured; the axial-only plan's landing peaks above its flight's from this start, 2,828 / 2,914)."""
+    from cassie_model.model import Scenario
+    from flip_tools.perturb import read_noise
+    from flip_tools.summary import RPM_PER_RADPS
+    from flip_tools.tracking import peak_abs
+    sim = Simulator(scenario=Scenario.platform(0.5), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    z_stand = float(sim.standing_qpos[2]) - 0.5
+    plant = read_noise(sim, 1e-4, round(0.7 * 1e4), 0.7)
+    r = of.run("frontflip", seconds=11.0, start=0.7, sim=sim, controller=ctl, every=10, plant=plant,
+               apex_height=1.2, forward_distance=0.6, platform_height=0.5, motor_speed_scale=SCALE,
+               flywheel_torque=FLYWHEEL_TORQUE, knee_tangential=True)
+    assert r["session"].robot.params.knee_tangential
+    landings = [ref for _, ref in r["references"] if ref.domain == 3]
+    assert landings and all(ref.figures["fallback"] == 0.0 for ref in landings)
+    assert ctl.landing_fallbacks == []
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "frontflip", pitch_end=plant.pitch) == "landed"
+    of.assert_stands(sim, ctl, z_stand)
+    lo, td = of.lift_off_touch_down(r["events"])
+    w = np.asarray(r["fw"]) * RPM_PER_RADPS
+    flight, landing = peak_abs(r["t"], w, lo, td), peak_abs(r["t"], w, td, float(r["t"][-1]))
+    assert landing < 0.95 * flight, (flight, landing)
+
+
 def test_bench_landings_takes_a_summarys_heading_and_x_start_as_written():
     """The re-run recipe of summary.json (``--x-start X --heading PSI PX PY``) takes negative numbers in
     exponent form as the values they are (argparse alone reads '-4.9e-06' as an option)."""

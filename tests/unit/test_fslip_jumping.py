@@ -110,3 +110,20 @@ def test_plan_dict_contents(plans):
     # peak flywheel speed: at least the lift-off momentum over the flywheel inertia, minus body share
     assert d["peak_flywheel_speed"] > 0.5 * abs(d["lift_off"]["momentum"]) / 0.1074
     assert d["solve_time_s"] < 5.0
+
+
+def test_the_knee_tangential_plan_keeps_the_knees_within_their_torque():
+    """Flip C planned with ``knee_tangential``: at every knot the knees' share F^s + rho(L) f_t stays
+    within F_max(L); the axial-only plan of the same request goes past it where its frontflip torque
+    pushes the foot back (it counts F^s alone), and the request records the model."""
+    req = dict(apex_height=1.2, forward_distance=0.6, platform_height=0.5, **ROBOT)
+    over = {}
+    for tangential in (False, True):
+        r = P.plan_flip("frontflip", knee_tangential=tangential, **req)
+        assert r.request["knee_tangential"] is tangential
+        s = r.solution
+        q = F.params_for("I", knee_tangential=True, **ROBOT)        # the knee-torque model, either plan
+        share = np.array([float(q.knee_leg_force(s.X[k], s.U[k])) for k in range(len(s.t))])
+        over[tangential] = float(np.max(share - np.array([float(q.F_max(L)) for L in s.L])))
+    assert over[True] <= 1e-3
+    assert over[False] > 20.0

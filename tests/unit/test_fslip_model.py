@@ -77,10 +77,47 @@ def test_regression_fit_quality():
 def test_regression_recomputed_matches_file():
     rows = R.standing_grid("I", n=3, knee_range=(-1.9, -1.0))
     reg = R.load("I")
-    for knee, L, K, D, I, dq, comh in rows:
+    for knee, L, K, D, I, dq, comh, rho in rows:
         assert reg("I", L) == pytest.approx(I, rel=5e-3)
+        assert reg("rho", L) == pytest.approx(rho, rel=0.08)
         assert reg("K", L) == pytest.approx(K, rel=0.10)
         assert reg("com_h", L) == pytest.approx(comh, rel=5e-3)
+
+
+def test_the_knee_swings_the_foot_forward_more_the_straighter_the_leg():
+    """rho(L) = L (dα/dq_knee) / (dL/dq_knee): a knee extension moves the foot forward about the hip as
+    well as away from it, by about half as much in a deep crouch and more than twice as much near full
+    extension (so a tangential foot force loads the knee too)."""
+    reg = R.load("I")
+    fit = reg.info["fits"]["rho"]
+    assert fit["r2"] > 0.99
+    assert 0.3 < fit["min"] < 0.7 and 2.0 < fit["max"] < 3.0
+    L = np.linspace(reg.L_min, reg.L_max, 20)
+    assert np.all(np.diff(reg("rho", L)) > 0)
+
+
+@pytest.mark.parametrize("tau, loaded", [(80.0, True), (-80.0, False)])
+def test_the_knee_model_counts_the_tangential_force_when_asked(tau, loaded):
+    """``knee_tangential``: the knees' share is F^s + rho(L) f_t (f_t = (τ+u)/r), so at F^s = F_max(L)
+    a frontflip's pitching torque (τ > 0: the ground pushes the foot back) violates the knee row and a
+    backflip's leaves slack; without it the row sees F^s alone (0 at F_max)."""
+    pytest.importorskip("casadi")
+    from fslip_planner import jumping as Jm
+    rows = {}
+    for tangential in (False, True):
+        q = F.params_for("I", motor_speed_scale=3.0, flywheel_torque=260.0, knee_tangential=tangential)
+        x = np.array([0.02, 0.62, 0.0, 0.0, 0.0])             # at rest: the envelope rows equal the limit row
+        Fs = 1.0
+        for _ in range(30):                                   # F^s = F_max(L(F^s))
+            Fs = float(q.F_max(F.leg_length(x, [Fs, tau, 0.0], q)))
+        u = np.array([Fs, tau, 0.0])
+        g = np.array(Jm.knot_functions(q, 1)[2](x, u)).ravel() * Jm.row_scales(q)[:13]
+        rows[tangential] = g[Jm.PATH_ROWS.index("leg force limit (knee torque)")]
+        L = float(F.leg_length(x, u, q))
+        f_t = tau / float(np.hypot(*x[:2]))
+        assert float(q.knee_leg_force(x, u)) == pytest.approx(Fs + (q.reg("rho", L) * f_t if tangential else 0.0))
+    assert rows[False] == pytest.approx(0.0, abs=1e-6)
+    assert (rows[True] < -50.0) if loaded else (rows[True] > 50.0)
 
 
 def test_missing_data_file_names_script(tmp_path):

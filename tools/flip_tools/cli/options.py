@@ -19,6 +19,7 @@ def scenario_opts(sp, plan=False, flight_check=True):
     robot_opts(sp)
     if flight_check:
         flight_check_opt(sp)
+        knee_model_opt(sp)
 
 
 def robot_opts(sp):
@@ -40,6 +41,13 @@ def flight_check_opt(sp):
                     help="design study: the planner does not refuse a jump whose planned flight needs more "
                          "flywheel torque than the motor gives (the robot may fly longer than its plan); "
                          "the torque it needs is still reported")
+
+
+def knee_model_opt(sp):
+    """--knee-tangential: the planner's knee torque counts the tangential foot force too."""
+    sp.add_argument("--knee-tangential", action="store_true",
+                    help="plan with the knee torque of the tangential foot force too, (F^s + rho(L) f_t) "
+                         "dL/dq_knee, not of the leg's axial force alone (FSLIPParams.knee_tangential)")
 
 
 def controller_opt(sp):

@@ -34,6 +34,8 @@ def cmd_plan(args) -> int:
     kw.update(robot_params(args))
     if args.no_flight_check:
         kw["flight_check"] = False
+    if args.knee_tangential:
+        kw["knee_tangential"] = True
     t0 = time.perf_counter()
     try:
         result = planmod.plan_flip(args.kind, **kw)

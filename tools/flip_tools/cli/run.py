@@ -70,7 +70,7 @@ def run_setup(args) -> dict:
                   "duration": float(args.duration if args.duration else args.max_sim_time),
                   **robot_params(args), **scen, **plant_params(args), **sim_loop_params(args), **wrench_params(args)}
     planner_params = {**robot_params(args), "platform_height": float(args.platform or 0.0),
-                      "flight_check": not args.no_flight_check}
+                      "flight_check": not args.no_flight_check, "knee_tangential": bool(args.knee_tangential)}
     return {"command": sys.argv, "kind": kind, "robot": args.robot, "sim_params": sim_params,
             "planner_params": planner_params,
             "tsc_params": tsc_params(args),

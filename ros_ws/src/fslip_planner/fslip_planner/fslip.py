@@ -56,6 +56,9 @@ class FSLIPParams:
     L_min: float = 0.55
     L_max: float = 0.95
     knee_no_load_speed: float = math.inf   # rad/s; inf = no torque–speed envelope on the leg force
+    #: the knee torque counts the tangential force too, (F^s + rho(L) f_t) dL/dq_knee (regression ``rho``);
+    #: False: the axial force alone, F^s dL/dq_knee (docs/tuning.md, ``knee_tangential``)
+    knee_tangential: bool = False
     I_flywheel: float = 0.1074      # spin inertia of the robot's pelvis flywheel
     g: float = G
     extra: dict = field(default_factory=dict)
@@ -71,6 +74,14 @@ class FSLIPParams:
 
     def F_max(self, L):
         return self.reg("F_max", L)
+
+    def knee_leg_force(self, X, U):
+        """The axial leg force whose knee torque equals that of the foot force of (X, U): F^s, plus
+        rho(L) f_t (f_t = (τ+u)/r, the tangential force) with ``knee_tangential``."""
+        if not self.knee_tangential:
+            return U[0]
+        r = leg_geometry(X)[0]
+        return U[0] + self.reg("rho", leg_length(X, U, self)) * (U[1] + U[2]) / r
 
     def dqknee_dL(self, L):
         return self.reg("F_max", L) / (2.0 * self.reg.info.get("knee_torque_limit", 195.2))
@@ -144,12 +155,12 @@ def static_state(p: FSLIPParams, L):
 
 
 def params_for(flywheel="I", mu=0.6, knee_speed_envelope=True, motor_speed_scale=1.0,
-               flywheel_torque=None) -> FSLIPParams:
+               flywheel_torque=None, knee_tangential=False) -> FSLIPParams:
     """:class:`FSLIPParams` of the robot with a Table I flywheel: m = Cassie + flywheel mass, foot
     length l (toe–heel contact points), flywheel torque bound (``flywheel_torque`` N·m; None or 0:
     the flywheel's own), the regression, and (by default) the knee torque–speed envelope (the
     simulator clips motor torques with it), its no-load speed times ``motor_speed_scale`` as in
-    ``cassie_model.motor_limits.MotorLimits``."""
+    ``cassie_model.motor_limits.MotorLimits``; ``knee_tangential`` as :class:`FSLIPParams`'."""
     from cassie_model import robot_params as P
     from cassie_model.motor_limits import with_flywheel_torque
 
@@ -161,4 +172,4 @@ def params_for(flywheel="I", mu=0.6, knee_speed_envelope=True, motor_speed_scale
     return FSLIPParams(m=P.CASSIE_MASS + fw.mass, reg=reg, foot_length=P.FOOT_LENGTH, mu=mu,
                        tau_max=P.flywheel_motor(fw).torque_limit,
                        L_min=max(0.55, reg.L_min), L_max=min(0.95, reg.L_max),
-                       knee_no_load_speed=w0, I_flywheel=fw.inertia_pitch)
+                       knee_no_load_speed=w0, I_flywheel=fw.inertia_pitch, knee_tangential=bool(knee_tangential))

@@ -8,6 +8,8 @@ cone |F_x| ≤ μ F_z; ZMP |u| ≤ F_z l/2; flywheel |τ| ≤ τ_max (see below)
 F^s ≤ F_max(L) = 2 τ_knee,max |dq_knee/dL| and, with the knee's torque–speed envelope
 (:func:`cassie_model.motor_limits.planning_rows` at r = |dq_knee/dL| ṙ / ω₀; ṙ ≥ L̇ while the spring
 unloads: conservative), F^s ≤ F_max(L) (1 − r) pushing and F^s ≤ 2 F_max(L) (1 + r) compressing;
+with ``FSLIPParams.knee_tangential`` the knees' share F^s + ρ(L) f_t (f_t = (τ+u)/r) in place of F^s in
+these rows (the knee torque of the tangential force too, regression ``rho``);
 lift-off at the last knot: F_z = F_x = u = 0 (⇔ F^s = τ = u = 0); before that the feet stay loaded,
 F_z ≥ ½ m g ramping to 0 over the last 3 knots (the robot's contact detector must not see an early
 lift-off, e.g. in a free-fall crouch).
@@ -94,12 +96,13 @@ def knot_functions(p: F.FSLIPParams, N: int):
     Fx, Fz = F.grf(x, u, p)
     L = F.leg_length(x, u, p)
     Fmax = p.F_max(L)
+    Fk = p.knee_leg_force(x, u)            # the knees' share: F^s, or F^s + rho f_t (knee_tangential)
     rows = [L - p.L_min, p.L_max - L, u[0], Fz, p.mu * Fz - Fx, p.mu * Fz + Fx,
             0.5 * p.foot_length * Fz - u[2], 0.5 * p.foot_length * Fz + u[2],
-            p.tau_max - u[1], p.tau_max + u[1], Fmax - u[0]]
+            p.tau_max - u[1], p.tau_max + u[1], Fmax - Fk]
     if math.isfinite(p.knee_no_load_speed):
         rdot = F.leg_geometry(x)[3]
-        rows += [Fmax * f - u[0] for f in planning_rows(p.dqknee_dL(L) * rdot / p.knee_no_load_speed)]
+        rows += [Fmax * f - Fk for f in planning_rows(p.dqknee_dL(L) * rdot / p.knee_no_load_speed)]
     sc = row_scales(p)[:len(rows)]
     f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
     fl = ca.Function("L", [x, u], [L]).map(N)

@@ -49,10 +49,10 @@ LANDING_LEG_EXTENSION = 0.04
 
 # ------------------------------------------------------------------------------------------ robot
 class _Robot:
-    """Per-(flywheel, motor speed scale, flywheel torque) constants of the robot model (cached)."""
+    """Per-(flywheel, motor speed scale, flywheel torque, knee model) constants of the robot model (cached)."""
     _cache: Dict[tuple, "_Robot"] = {}
 
-    def __init__(self, flywheel, motor_speed_scale=1.0, flywheel_torque=None):
+    def __init__(self, flywheel, motor_speed_scale=1.0, flywheel_torque=None, knee_tangential=False):
         from cassie_model import robot_params as P
         from cassie_model.model import standing_figures
         st = standing_figures(flywheel)
@@ -64,7 +64,7 @@ class _Robot:
         self.mass = st.mass
         self.L0 = st.leg_length
         self.params = F.params_for(flywheel, motor_speed_scale=motor_speed_scale,
-                                   flywheel_torque=flywheel_torque)
+                                   flywheel_torque=flywheel_torque, knee_tangential=knee_tangential)
         fw = P.flywheel(flywheel)
         self.I_fw = fw.inertia_pitch
         self.fw_max_speed = (fw.max_speed_rpm * 2 * math.pi / 60) if fw.max_speed_rpm else math.inf
@@ -78,16 +78,16 @@ class _Robot:
         raise KeyError("no robot built with these FSLIP parameters")
 
     @classmethod
-    def get(cls, flywheel, motor_speed_scale=1.0, flywheel_torque=None):
-        key = (flywheel, float(motor_speed_scale), _check_torque(flywheel_torque))
+    def get(cls, flywheel, motor_speed_scale=1.0, flywheel_torque=None, knee_tangential=False):
+        key = (flywheel, float(motor_speed_scale), _check_torque(flywheel_torque), bool(knee_tangential))
         if key not in cls._cache:
-            cls._cache[key] = cls(flywheel, motor_speed_scale, key[2])
+            cls._cache[key] = cls(flywheel, motor_speed_scale, key[2], key[3])
         return cls._cache[key]
 
 
-def default_apex(flywheel="I", motor_speed_scale=1.0, flywheel_torque=None):
+def default_apex(flywheel="I", motor_speed_scale=1.0, flywheel_torque=None, knee_tangential=False):
     """Default apex (m): the reachable maximum minus :data:`DEFAULT_APEX_MARGIN` (I: 1.05 m)."""
-    p = _Robot.get(flywheel, motor_speed_scale, flywheel_torque).params
+    p = _Robot.get(flywheel, motor_speed_scale, flywheel_torque, knee_tangential).params
     return round(max_vertical_jump(p)[0] - DEFAULT_APEX_MARGIN, 2)
 
 
@@ -193,21 +193,23 @@ def _figures(sol: Jm.Solution, robot: _Robot):
 
 
 def plan_flip(kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-              motor_speed_scale=1.0, flywheel_torque=None, flight_check=True) -> PlanResult:
+              motor_speed_scale=1.0, flywheel_torque=None, flight_check=True,
+              knee_tangential=False) -> PlanResult:
     """Jumping plan alone (no ROS).  ``apex_height`` None or 0 → :func:`default_apex`;
     ``motor_speed_scale`` multiplies the leg motors' no-load speeds and ``flywheel_torque`` (N·m;
     None or 0: the flywheel's own) is the flywheel motor's limit (as in the simulator);
-    ``flight_check`` as :class:`FlipSession`'s."""
+    ``flight_check`` and ``knee_tangential`` as :class:`FlipSession`'s."""
     apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height, flywheel)
     _check_scale(motor_speed_scale)
     _check_torque(flywheel_torque)
-    robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
-    apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
+    robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque, knee_tangential)
+    apex = default_apex(flywheel, motor_speed_scale, flywheel_torque, knee_tangential) if apex is None else apex
     sol = _solve(kind, apex, dist, plat, robot, flight_check)
     fig, lo = _figures(sol, robot)
     _check_landing(robot, lo, kind, apex, dist, plat, shared_problem(robot.params, robot.L0, "rest"))
     req = dict(kind=kind, apex_height=apex, forward_distance=dist, platform_height=plat, flywheel=flywheel,
-               motor_speed_scale=float(motor_speed_scale), flywheel_torque=float(robot.params.tau_max))
+               motor_speed_scale=float(motor_speed_scale), flywheel_torque=float(robot.params.tau_max),
+               knee_tangential=bool(knee_tangential))
     return PlanResult(kind, req, sol, fig, lo)
 
 
@@ -230,17 +232,20 @@ class FlipSession:
     GRACE = 0.5   # s after the planned end of a phase before the flip counts as abandoned
 
     def __init__(self, kind, apex_height=None, forward_distance=0.0, platform_height=0.0, flywheel="I",
-                 motor_speed_scale=1.0, flywheel_torque=None, flight_check=True):
+                 motor_speed_scale=1.0, flywheel_torque=None, flight_check=True, knee_tangential=False):
         """``flight_check`` False (design studies, ``scripts/bench_landings.py --no-flight-check``): a
-        jump whose planned flight needs more flywheel torque than the motor gives is not refused."""
+        jump whose planned flight needs more flywheel torque than the motor gives is not refused.
+        ``knee_tangential``: plan with the knee torque of the tangential foot force too
+        (:class:`fslip_planner.fslip.FSLIPParams`; ``scripts/bench_landings.py --knee-tangential``)."""
         apex, dist, plat = validate_inputs(kind, apex_height or None, forward_distance, platform_height,
                                            flywheel)
         _check_scale(motor_speed_scale)
         self.kind, self.flywheel = kind, flywheel
         self.motor_speed_scale = float(motor_speed_scale)
         self.flywheel_torque = _check_torque(flywheel_torque)
-        self.robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque)
-        self.apex = default_apex(flywheel, motor_speed_scale, flywheel_torque) if apex is None else apex
+        self.robot = _Robot.get(flywheel, motor_speed_scale, flywheel_torque, knee_tangential)
+        self.apex = (default_apex(flywheel, motor_speed_scale, flywheel_torque, knee_tangential)
+                     if apex is None else apex)
         self.distance, self.platform = dist, plat
         self.flight_check = bool(flight_check)
         self.result: Optional[PlanResult] = None

@@ -137,6 +137,8 @@ class PlannerNode:
         # false: a design study's jumps whose planned flight needs more flywheel torque than the motor
         # gives are not refused (FlipSession's flight_check)
         self.flight_check = bool(n.declare_parameter('flight_check', True).value)
+        # true: the knee torque of the tangential foot force is planned too (FlipSession's knee_tangential)
+        self.knee_tangential = bool(n.declare_parameter('knee_tangential', False).value)
         self.pub = n.create_publisher(FlipReference, '/fslip/reference', LATCHED_QOS)
         self.pub_path = n.create_publisher(Path, '/fslip/com_path', VIEW_QOS)
         self.pub_targets = n.create_publisher(MarkerArray, '/fslip/targets', VIEW_QOS)
@@ -236,7 +238,7 @@ class PlannerNode:
         try:
             FlipSession('backflip', platform_height=self.platform_height, flywheel=self.flywheel,
                         motor_speed_scale=self.motor_speed_scale, flywheel_torque=self.flywheel_torque,
-                        flight_check=self.flight_check).jumping_reference()
+                        flight_check=self.flight_check, knee_tangential=self.knee_tangential).jumping_reference()
         except (InfeasibleRequest, ValueError) as e:      # a robot that cannot backflip still serves
             self.node.get_logger().info(f'warm-up plan refused ({e})')
         self.node.get_logger().info(f'warmed up in {time.perf_counter() - t0:.2f} s')
@@ -279,7 +281,8 @@ class PlannerNode:
                                   forward_distance=req.forward_distance,
                                   platform_height=req.platform_height or self.platform_height,
                                   flywheel=self.flywheel, motor_speed_scale=self.motor_speed_scale,
-                                  flywheel_torque=self.flywheel_torque, flight_check=self.flight_check)
+                                  flywheel_torque=self.flywheel_torque, flight_check=self.flight_check,
+                                  knee_tangential=self.knee_tangential)
             # every plan starts from the measured state: refused unless the robot stands
             state = self._measured_pelvis()
             if state is None:

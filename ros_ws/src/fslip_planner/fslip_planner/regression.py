@@ -18,7 +18,11 @@ feet) we compute, per configuration:
   from MuJoCo's body inertias (principal inertia rotated by ``ximat`` + parallel-axis term);
 * ``dqk_dL``: knee-angle change per unit leg length (springs at rest), giving the leg-force limit
   F_max(L) = 2 τ_knee,max / |dL/dq_knee| (virtual work, both knees);
-* ``com_h``: COM height above the ground minus L (the FSLIP point mass sits at the COM).
+* ``com_h``: COM height above the ground minus L (the FSLIP point mass sits at the COM);
+* ``rho``: the knee's tangential lever, L (dα/dq_knee) / (dL/dq_knee) (α: the hip->foot direction,
+  + forward): a knee turn also swings the foot about the hip, so the knee torque of a foot force with
+  axial part F^s and tangential part f_t is (F^s + rho f_t) dL/dq_knee (virtual work) — used by the
+  planner's ``knee_tangential`` model (:mod:`fslip_planner.jumping`).
 
 Polynomials in L (degree 3) are fitted per flywheel variant and written to
 ``data/fslip_regression.json`` by ``scripts/fit_fslip_regression.py``; :func:`load` reads it.
@@ -34,7 +38,7 @@ import numpy as np
 
 DATA_FILE = os.path.join(os.path.dirname(__file__), "data", "fslip_regression.json")
 FIT_DEGREE = 3
-QUANTITIES = ("K", "D", "I", "F_max", "com_h")
+QUANTITIES = ("K", "D", "I", "F_max", "com_h", "rho")
 
 
 def _robot():
@@ -139,7 +143,7 @@ class _Kin:
 
 
 def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
-    """Rows (knee, L, K, D, I, dqk_dL, com_h) over a grid of knee angles (rad)."""
+    """Rows (knee, L, K, D, I, dqk_dL, com_h, rho) over a grid of knee angles (rad)."""
     kin = _Kin(flywheel)
     mj, M, P = kin.mj, kin.M, kin.P
     m = kin.model
@@ -163,7 +167,7 @@ def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
         zc = kin.data.subtree_com[kin.pelvis][2] - (feet[:, 2].min() - P.FOOT_RADIUS)
         L = kin.leg_length(q)
         # spring Jacobian per leg (knee, hip locked; passive joints re-close the loops)
-        K_leg, D_leg, dqk = [], [], []
+        K_leg, D_leg, dqk, rho = [], [], [], []
         for si, s in enumerate(("left", "right")):
             n_vec = kin.legs(q)[si]
             n_vec = n_vec / np.linalg.norm(n_vec)
@@ -182,14 +186,18 @@ def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
             dq_dL = np.linalg.solve(Ks, g) / c   # static spring deflection per unit L
             K_leg.append(dq_dL @ Ks @ dq_dL)
             D_leg.append(dq_dL @ Ds @ dq_dL)
-            pts = []
+            pts, ang = [], []
             for sign in (1, -1):
                 qq = q.copy()
                 qq[kin.qadr(f"{s}_knee")] += sign * h
                 qq = kin.close(qq)
-                pts.append(np.linalg.norm(kin.legs(qq)[si]))
+                v = kin.legs(qq)[si]
+                pts.append(np.linalg.norm(v))
+                ang.append(np.arctan2(v[0], -v[2]))
             dqk.append(2 * h / abs(pts[0] - pts[1]))
-        rows.append((k, L, sum(K_leg), sum(D_leg), kin.pitch_inertia(q), float(np.mean(dqk)), zc - L))
+            rho.append(np.linalg.norm(kin.legs(q)[si]) * (ang[0] - ang[1]) / (pts[0] - pts[1]))
+        rows.append((k, L, sum(K_leg), sum(D_leg), kin.pitch_inertia(q), float(np.mean(dqk)), zc - L,
+                     float(np.mean(rho))))
     return np.array(rows)
 
 
@@ -197,7 +205,7 @@ def fit(rows, knee_torque, degree=FIT_DEGREE) -> dict:
     """Polynomial fits (numpy.polyfit, highest power first) of K, D, I, F_max, com_h over L."""
     L = rows[:, 1]
     data = {"K": rows[:, 2], "D": rows[:, 3], "I": rows[:, 4],
-            "F_max": 2.0 * knee_torque * rows[:, 5], "com_h": rows[:, 6]}
+            "F_max": 2.0 * knee_torque * rows[:, 5], "com_h": rows[:, 6], "rho": rows[:, 7]}
     out = {"L_min": float(L.min()), "L_max": float(L.max()), "degree": degree, "fits": {},
            "samples": {"L": L.tolist(), "knee": rows[:, 0].tolist(),
                        "dqknee_dL": rows[:, 5].tolist(), **{k: v.tolist() for k, v in data.items()}}}
@@ -222,7 +230,7 @@ class Regression:
     info: dict
 
     def __call__(self, name, L):
-        """Polynomial ``name`` (K, D, I, F_max, com_h) at L; works for floats and CasADi symbols."""
+        """Polynomial ``name`` (K, D, I, F_max, com_h, rho) at L; works for floats and CasADi symbols."""
         c = self.coeffs[name]
         y = 0.0 * L + c[0]
         for a in c[1:]:
@@ -275,5 +283,5 @@ def compute_all(flywheels=("I", "II", "III"), n=15) -> dict:
 
 if __name__ == "__main__":  # pragma: no cover
     np.set_printoptions(precision=4, suppress=True)
-    print("knee, L, K, D, I, dqknee/dL, com_h")
+    print("knee, L, K, D, I, dqknee/dL, com_h, rho")
     print(standing_grid("I", n=6))
