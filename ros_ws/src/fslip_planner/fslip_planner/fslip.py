@@ -57,7 +57,7 @@ class FSLIPParams:
     L_max: float = 0.95
     knee_no_load_speed: float = math.inf   # rad/s; inf = no torque–speed envelope on the leg force
     #: the knee torque counts the tangential force too, (F^s + rho(L) f_t) dL/dq_knee (regression ``rho``);
-    #: False: the axial force alone, F^s dL/dq_knee (docs/tuning.md, ``knee_tangential``)
+    #: False: the axial force alone, F^s dL/dq_knee (docs/planner.md, "The knees' share")
     knee_tangential: bool = False
     I_flywheel: float = 0.1074      # spin inertia of the robot's pelvis flywheel
     g: float = G

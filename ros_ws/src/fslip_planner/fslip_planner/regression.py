@@ -202,7 +202,7 @@ def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
 
 
 def fit(rows, knee_torque, degree=FIT_DEGREE) -> dict:
-    """Polynomial fits (numpy.polyfit, highest power first) of K, D, I, F_max, com_h over L."""
+    """Polynomial fits (numpy.polyfit, highest power first) of K, D, I, F_max, com_h, rho over L."""
     L = rows[:, 1]
     data = {"K": rows[:, 2], "D": rows[:, 3], "I": rows[:, 4],
             "F_max": 2.0 * knee_torque * rows[:, 5], "com_h": rows[:, 6], "rho": rows[:, 7]}
