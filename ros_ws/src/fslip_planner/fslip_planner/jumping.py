@@ -73,7 +73,7 @@ def _collect(opti, sol, Xv, Uv, Tv, p, t0, stats):
                     int(stats.get("iter_count", -1)), str(stats.get("return_status")), p)
 
 
-_FUNCS = {}
+_FUNCS = {}     # (id(params), N) -> (params, functions)
 
 
 def row_scales(p: F.FSLIPParams):
@@ -90,7 +90,7 @@ def knot_functions(p: F.FSLIPParams, N: int):
     import casadi as ca
     key = (id(p), N)
     if key in _FUNCS:
-        return _FUNCS[key]
+        return _FUNCS[key][1]
     x = ca.SX.sym("x", 5)
     u = ca.SX.sym("u", 3)
     Fx, Fz = F.grf(x, u, p)
@@ -107,7 +107,7 @@ def knot_functions(p: F.FSLIPParams, N: int):
     f = ca.Function("f", [x, u], [ca.vertcat(*F.dynamics(x, u, p))]).map(N)
     fl = ca.Function("L", [x, u], [L]).map(N)
     fg = ca.Function("g", [x, u], [ca.vertcat(*[r / s for r, s in zip(rows, sc)])]).map(N)
-    _FUNCS[key] = (f, fl, fg)
+    _FUNCS[key] = (p, (f, fl, fg))      # p kept alive: its id is not reused by other parameters
     return f, fl, fg
 
 
