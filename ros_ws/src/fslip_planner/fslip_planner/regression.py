@@ -169,8 +169,8 @@ def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
         # spring Jacobian per leg (knee, hip locked; passive joints re-close the loops)
         K_leg, D_leg, dqk, rho = [], [], [], []
         for si, s in enumerate(("left", "right")):
-            n_vec = kin.legs(q)[si]
-            n_vec = n_vec / np.linalg.norm(n_vec)
+            leg = kin.legs(q)[si]
+            n_vec = leg / np.linalg.norm(leg)
             Js = np.zeros((3, 2))
             h = 1e-4
             for j, name in enumerate((f"{s}_shin", f"{s}_heel_spring")):
@@ -195,7 +195,7 @@ def standing_grid(flywheel="I", n=15, knee_range=(-2.20, -0.80)):
                 pts.append(np.linalg.norm(v))
                 ang.append(np.arctan2(v[0], -v[2]))
             dqk.append(2 * h / abs(pts[0] - pts[1]))
-            rho.append(np.linalg.norm(kin.legs(q)[si]) * (ang[0] - ang[1]) / (pts[0] - pts[1]))
+            rho.append(np.linalg.norm(leg) * (ang[0] - ang[1]) / (pts[0] - pts[1]))
         rows.append((k, L, sum(K_leg), sum(D_leg), kin.pitch_inertia(q), float(np.mean(dqk)), zc - L,
                      float(np.mean(rho))))
     return np.array(rows)
