@@ -33,3 +33,25 @@ def test_backflip_turns_backwards_in_the_air(backflip):
     assert td is not None and td - lo > 0.3
     pitch_at_td = backflip["pitch"][backflip["t"] <= td][-1]
     assert pitch_at_td < -4.7                  # more than 270° backwards (rad, unwrapped pelvis pitch)
+
+
+def _lift_off_zdot(r):
+    return next(float(st.com_velocity[2]) for k, st in r["event_states"] if k == 0)
+
+
+def test_a_push_sampled_by_the_legs_extension_leaves_near_its_planned_speed(backflip):
+    """ControllerConfig.push_phase_from_leg (off by default): the push's plan sampled where its leg
+    length is the measured one.  By the clock the push falls behind at the knees' torque limit and,
+    still behind when the plan's force falls off, extends at full torque past the plan's speed
+    (measured: ż 3.14 m/s at lift-off against 2.31 planned); by the leg's extension it leaves at 2.57."""
+    sim, _ = robot()
+    from cassie_model.model import export_mjcf
+    from tsc_controller import Controller
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
+                     push_phase_from_leg=True)
+    r = of.run("backflip", seconds=2.5, start=1.1525, sim=sim, controller=ctl, apex_height=1.3,
+               motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    planned = backflip["session"].result.lift_off["zdot"]
+    assert r["session"].result.lift_off["zdot"] == planned
+    assert _lift_off_zdot(backflip) - planned > 0.6
+    assert abs(_lift_off_zdot(r) - planned) < 0.4

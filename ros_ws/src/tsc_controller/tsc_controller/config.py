@@ -95,6 +95,10 @@ class ControllerConfig:
     # lagging its plan at the knees' torque limit still gets its flight (docs/tuning.md)
     push_grace: float = 0.3           # s
     push_rising: float = 1.0          # m/s
+    # JUMPING after the plan's deepest crouch: the reference sampled where its leg length is the
+    # measured one (its velocity, momentum and COM as functions of the leg's extension), not at the
+    # clock's time.  Off: the plans' flights need the push's overshoot (docs/tuning.md)
+    push_phase_from_leg: bool = False
     max_late: float = 0.01            # s after its start_time a JUMPING reference may still start
     # T1 (paper, eq. Y^F_2) as a fraction of the flight time, where the reference gives none: before T1
     # the flight holds the lift-off posture, after it the legs are placed for the touch-down

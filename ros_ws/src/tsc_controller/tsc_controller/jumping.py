@@ -1,6 +1,8 @@
 """The JUMPING domain: :class:`Jumping`."""
 from __future__ import annotations
 
+import numpy as np
+
 from .config import ControllerConfig
 from .domain_outputs import _ground_outputs
 from .ground_targets import GroundTargets
@@ -15,14 +17,38 @@ class Jumping:
     def __init__(self, ground: GroundTargets, cfg: ControllerConfig):
         self.ground, self.cfg = ground, cfg
         self.outputs = _ground_outputs({**cfg.gains, **cfg.jumping_gains})
+        self._phase = None                # _push_phase's reference, its push and the last phase
 
     def enter(self):
-        pass                              # the standing targets go on (turned into the heading frame)
+        self._phase = None                # the standing targets go on (turned into the heading frame)
 
     def task(self, t, ref):
         des = self.ground.targets(t, False)
-        self.ground.follow(des, ref.sample(t - ref.start_time))
+        tau = t - ref.start_time
+        if self.cfg.push_phase_from_leg and ref.has("L"):
+            tau = self._push_phase(tau, ref)
+        self.ground.follow(des, ref.sample(tau))
         return self.outputs, [des[o.name] for o in self.outputs]
+
+    def _push_phase(self, tau, ref):
+        """The reference's time in the push (after its deepest crouch): where its leg length (made
+        non-decreasing) is the measured one, never going back; before it, ``tau`` (see
+        ControllerConfig.push_phase_from_leg)."""
+        ph = self._phase
+        if ph is None or ph[0] is not ref:
+            L = ref.value[:, ref.names.index("L")]
+            i0 = int(np.argmin(L))
+            Lm = np.maximum.accumulate(L[i0:])
+            ph = self._phase = [ref, float(ref.t[i0]), ref.t[i0:], Lm, -np.inf]
+        _, t0, tt, Lm, last = ph
+        if tau < t0:
+            return tau
+        L_now = float(self.ground.o_L.evaluate(self.ground.dyn)[0][0])
+        k = int(np.searchsorted(Lm, L_now, side="right"))
+        tp = float(tt[-1]) if k >= len(Lm) else (float(tt[0]) if k == 0 else
+                                                float(np.interp(L_now, Lm[k - 1:k + 1], tt[k - 1:k + 1])))
+        ph[4] = max(last, tp)
+        return ph[4]
 
     def push_over(self, t, t_end):
         """JUMPING has run past its reference without a lift-off: over after ``grace``, or after
