@@ -5,6 +5,8 @@ unload the feet 0.1 s into the push) — and, for a backflip, turns backwards th
 somersault in the air.  The somersault robot of test_offline_flip.py: the planner rejects the
 published robot's backflip (its flywheel cannot turn the body in the flight its knees give it)."""
 import pytest
+from cassie_model.model import export_mjcf
+from tsc_controller import Controller
 
 import offline_flip as of
 from test_offline_flip import FLYWHEEL_TORQUE, SCALE, robot
@@ -45,8 +47,6 @@ def test_a_push_sampled_by_the_legs_extension_leaves_near_its_planned_speed(back
     still behind when the plan's force falls off, extends at full torque past the plan's speed
     (measured: ż 3.14 m/s at lift-off against 2.31 planned); by the leg's extension it leaves at 2.57."""
     sim, _ = robot()
-    from cassie_model.model import export_mjcf
-    from tsc_controller import Controller
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
                      push_phase_from_leg=True)
     r = of.run("backflip", seconds=2.5, start=1.1525, sim=sim, controller=ctl, apex_height=1.3,

@@ -17,10 +17,11 @@ class Jumping:
     def __init__(self, ground: GroundTargets, cfg: ControllerConfig):
         self.ground, self.cfg = ground, cfg
         self.outputs = _ground_outputs({**cfg.gains, **cfg.jumping_gains})
-        self._phase = None                # _push_phase's reference, its push and the last phase
+        self._push = None                 # (reference, t of its deepest crouch, times, L from there)
+        self._tau_push = -np.inf          # the push's last phase (it never goes back)
 
     def enter(self):
-        self._phase = None                # the standing targets go on (turned into the heading frame)
+        self._push, self._tau_push = None, -np.inf  # the standing targets go on (in the heading frame)
 
     def task(self, t, ref):
         des = self.ground.targets(t, False)
@@ -34,21 +35,20 @@ class Jumping:
         """The reference's time in the push (after its deepest crouch): where its leg length (made
         non-decreasing) is the measured one, never going back; before it, ``tau`` (see
         ControllerConfig.push_phase_from_leg)."""
-        ph = self._phase
-        if ph is None or ph[0] is not ref:
+        if self._push is None or self._push[0] is not ref:
             L = ref.value[:, ref.names.index("L")]
             i0 = int(np.argmin(L))
-            Lm = np.maximum.accumulate(L[i0:])
-            ph = self._phase = [ref, float(ref.t[i0]), ref.t[i0:], Lm, -np.inf]
-        _, t0, tt, Lm, last = ph
+            self._push = (ref, float(ref.t[i0]), ref.t[i0:], np.maximum.accumulate(L[i0:]))
+            self._tau_push = -np.inf
+        _, t0, tt, Lm = self._push
         if tau < t0:
             return tau
         L_now = float(self.ground.o_L.evaluate(self.ground.dyn)[0][0])
         k = int(np.searchsorted(Lm, L_now, side="right"))
         tp = float(tt[-1]) if k >= len(Lm) else (float(tt[0]) if k == 0 else
                                                 float(np.interp(L_now, Lm[k - 1:k + 1], tt[k - 1:k + 1])))
-        ph[4] = max(last, tp)
-        return ph[4]
+        self._tau_push = max(self._tau_push, tp)
+        return self._tau_push
 
     def push_over(self, t, t_end):
         """JUMPING has run past its reference without a lift-off: over after ``grace``, or after
