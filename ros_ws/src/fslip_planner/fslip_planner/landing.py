@@ -56,6 +56,12 @@ WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_
                   "ipopt.warm_start_mult_bound_push": 1e-3, "ipopt.mu_init": 1e-3,
                   "ipopt.warm_start_slack_bound_push": 1e-3, "ipopt.mu_strategy": "monotone",
                   "ipopt.max_iter": 60, "ipopt.tol": 1e-5})
+#: ... and the touch-down's re-solve from a prediction within WARM_NEAR (WARM_SCALE units) with the
+#: barrier at 1e-5: the touch-downs of B, F, A, D (0.2–0.9 units from one) took 13–17 iterations at 1e-3,
+#: 7–13 at 1e-5.  Not flip C's (1.5–1.8 units from its nearest; more iterations and more cold fallbacks
+#: at 1e-5), nor the predictions, which chain 1 unit apart and failed more often at 1e-5
+NEAR_OPTS = dict(WARM_OPTS, **{"ipopt.mu_init": 1e-5})
+WARM_NEAR = 1.25
 #: solved states kept as warm starts, and the scale of each state component [x, z, ẋ, ż, H] in the
 #: distance that picks the nearest (a 0.05 m lean, a 0.2 m/s speed, 2 kg m^2/s weigh alike)
 WARM_POINTS = 8
@@ -103,8 +109,10 @@ class LandingProblem:
         self._bounds = ca.Function("bounds", [opti.p], [opti.lbg, opti.ubg])
         self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, COLD_OPTS)
         self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, WARM_OPTS)
+        self.warm_near = ca.nlpsol("landing_warm_near", "ipopt", nlp, NEAR_OPTS)
         self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
         self._points = []         # (x0, primal, dual g, dual x) of the latest solves, newest last
+        self.last_start = None    # how the latest solve started: "near", "far" (warm) or "cold"
 
     @property
     def has_solutions(self) -> bool:
@@ -124,18 +132,22 @@ class LandingProblem:
         # decision vector order = order of creation in _variables: X, Us, T
         return np.r_[Xg.ravel(), Usg.T.ravel(), 0.7]
 
-    def solve(self, x0, warm=True) -> Jm.Solution:
+    def solve(self, x0, warm=True, near=0.0) -> Jm.Solution:
         """Solve from the post-impact FSLIP state x0 = [x, z, ẋ, ż, H] (foot at the origin); ``warm``:
-        from the nearest state solved before (cold if none)."""
+        from the nearest state solved before (cold if none), with IPOPT's barrier starting low
+        (NEAR_OPTS) when that state is within ``near`` (WARM_SCALE units)."""
         t0 = time.perf_counter()
         x0 = np.asarray(x0, float)
         if warm and self._points:
-            _, xv, lam_g, lam_x = min(self._points,
-                                      key=lambda q: float(np.sum(((q[0] - x0) / WARM_SCALE) ** 2)))
+            d2, (_, xv, lam_g, lam_x) = min(((float(np.sum(((q[0] - x0) / WARM_SCALE) ** 2)), q)
+                                             for q in self._points), key=lambda e: e[0])
+            self.last_start = "near" if d2 <= near ** 2 else "far"
+            solver = self.warm_near if self.last_start == "near" else self.warm
             lbg, ubg = self._bounds(x0)
-            res = self.warm(x0=xv, lam_g0=lam_g, lam_x0=lam_x, p=x0, lbg=lbg, ubg=ubg)
-            stats = self.warm.stats()
+            res = solver(x0=xv, lam_g0=lam_g, lam_x0=lam_x, p=x0, lbg=lbg, ubg=ubg)
+            stats = solver.stats()
         else:
+            self.last_start = "cold"
             lbg, ubg = self._bounds(x0)
             res = self.cold(x0=self._initial_guess(x0), p=x0, lbg=lbg, ubg=ubg)
             stats = self.cold.stats()

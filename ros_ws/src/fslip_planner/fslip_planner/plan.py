@@ -20,8 +20,8 @@ from .feasibility import (InfeasibleRequest, check_flight, check_landing, com_of
                           validate_inputs)
 from .ground_reference import DT_SAMPLE, ground_reference, knot_outputs, leg_offset
 from .heading_frame import HeadingFrame
-from .landing import (LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns, rise_beyond_reach,
-                      shared_problem)
+from .landing import (WARM_NEAR, LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns,
+                      rise_beyond_reach, shared_problem)
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -413,7 +413,7 @@ class FlipSession:
             self._landing = LandingProblem(self.robot.params, self.robot.L0)
         fig.update(predictions_left=float(left), predictions_left_time=t0 - t_left)
         sol, fallback = None, 0
-        attempts = [(lambda: self._landing.solve(x0, warm=True)),
+        attempts = [(lambda: self._landing.solve(x0, warm=True, near=WARM_NEAR)),
                     (lambda: self._landing.solve(x0, warm=False)),
                     (lambda: self._free_landing().solve(x0, warm=False))]
         beyond = rise_beyond_reach(x0, self.robot.params)
