@@ -143,7 +143,7 @@ def test_a_touch_down_near_a_prediction_starts_the_barrier_low_and_reaches_the_s
     near = prob._points[-1][1]                                # the touch-down's solution, kept last
     assert ref.figures["iterations"] < prob.warm.stats()["iter_count"]
     assert np.allclose(np.array(near).ravel(), np.array(far["x"]).ravel(), atol=5e-3)
-    c = LandingProblem(s.robot.params, s.robot.L0)
+    c = LandingProblem(s.robot.params, s.robot.L0, near_start=True)
     c.solve(np.array([-0.174, 0.896, 0.421, -3.767, 26.613]), warm=False)   # flip C's nominal touch-down
     c_td = np.array([-0.115, 0.906, 0.640, -3.858, 26.991])                # C's, measured offline (read noise)
     assert np.linalg.norm((c_td - c._points[0][0]) / LD.WARM_SCALE) > LD.WARM_NEAR

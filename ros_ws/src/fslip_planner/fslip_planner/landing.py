@@ -78,7 +78,9 @@ class LandingProblem:
     """Landing Opti built once per (params, L_stand, N); :meth:`solve` from a post-impact state."""
 
     def __init__(self, p: F.FSLIPParams, L_stand: float, N: int = N_KNOTS, T_bounds=T_BOUNDS,
-                 free_momentum: bool = False):
+                 free_momentum: bool = False, near_start: bool = False):
+        """``near_start``: also build the low-barrier solver that :meth:`solve` uses with ``near`` > 0
+        (~0.3 s more; only the touch-down's re-solve needs it)."""
         import casadi as ca
         self.p, self.N = p, N
         opti = ca.Opti()
@@ -109,7 +111,7 @@ class LandingProblem:
         self._bounds = ca.Function("bounds", [opti.p], [opti.lbg, opti.ubg])
         self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, COLD_OPTS)
         self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, WARM_OPTS)
-        self.warm_near = ca.nlpsol("landing_warm_near", "ipopt", nlp, NEAR_OPTS)
+        self.warm_near = ca.nlpsol("landing_warm_near", "ipopt", nlp, NEAR_OPTS) if near_start else None
         self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
         self._points = []         # (x0, primal, dual g, dual x) of the latest solves, newest last
         self.last_start = None    # how the latest solve started: "near", "far" (warm) or "cold"
@@ -136,6 +138,8 @@ class LandingProblem:
         """Solve from the post-impact FSLIP state x0 = [x, z, ẋ, ż, H] (foot at the origin); ``warm``:
         from the nearest state solved before (cold if none), with IPOPT's barrier starting low
         (NEAR_OPTS) when that state is within ``near`` (WARM_SCALE units)."""
+        if near > 0.0 and self.warm_near is None:
+            raise ValueError("solve(near=...) needs a LandingProblem built with near_start=True")
         t0 = time.perf_counter()
         x0 = np.asarray(x0, float)
         if warm and self._points:

@@ -279,7 +279,7 @@ class FlipSession:
             fig, lo = _figures(sol, self.robot)
             # the landing NLPs built now, and solved for the predicted touch-down (a warm start later);
             # refused when the robot could not land from it
-            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+            self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
             self._free_landing()                    # the touch-down's fallback NLP, built now
             _check_landing(self.robot, lo, self.kind, self.apex, self.distance, self.platform, self._landing)
             self.result = PlanResult(self.kind, {}, sol, fig, lo)
@@ -307,7 +307,7 @@ class FlipSession:
         if self.heading is not None:
             state = self.heading.measured(state)
         if self._landing is None:
-            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+            self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         t0 = time.perf_counter()
         self._predicted = predicted_touchdowns(self._touchdown_state(None), state.com_velocity,
                                                state.pitch_momentum, self.platform)
@@ -410,7 +410,7 @@ class FlipSession:
         foot_x = float(state.com[0]) - x0[0]        # the measured feet (up to the lean bound)
         fig = dict(self.result.figures)
         if self._landing is None:
-            self._landing = LandingProblem(self.robot.params, self.robot.L0)
+            self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         fig.update(predictions_left=float(left), predictions_left_time=t0 - t_left)
         sol, fallback = None, 0
         attempts = [(lambda: self._landing.solve(x0, warm=True, near=WARM_NEAR)),
