@@ -386,3 +386,25 @@ def test_bench_landings_takes_a_summarys_heading_and_x_start_as_written():
         sys.argv = old
     assert a.x_start == pytest.approx(-1.1e-3) and a.heading == pytest.approx([-4.9e-6, 0.0126, -8.1e-5])
     assert a.starts == [1.97] and a.kinds == ["frontflip"]
+
+
+def test_bench_landing_warm_start_replays_a_touch_down_under_each_strategy():
+    """scripts/bench_landing_warm_start.py records a backflip's touch-down with its predictions and
+    re-solves it under each warm start: every strategy answers, the blend in no more iterations than the
+    nearest alone, and the strategies that retry failed predictions leave none failed."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_landing_warm_start.py"
+    r = subprocess.run([sys.executable, str(script), "--kinds", "backflip", "--starts", "0.5", "--seconds", "2.45",
+                        "--jobs", "1", "--noise", "1e-4"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "landing re-solves of 1 recorded touch-downs" in r.stdout
+    rows = {c[0]: c[1:] for c in ([x.strip() for x in ln.strip("|").split("|")] for ln in r.stdout.splitlines()
+                                  if ln.startswith("| ") and not ln.startswith("| strategy"))}
+    assert set(rows) == {"nearest", "blend", "retry", "falls"}
+    its = {k: int(v[0]) for k, v in rows.items()}
+    assert all(0 < n < 60 for n in its.values()) and all(v[3] == "0" for v in rows.values())   # none failed
+    assert its["blend"] <= its["nearest"]
+    assert rows["retry"][6] == "0" and rows["falls"][6] == "0"
+    assert int(rows["falls"][4]) > int(rows["blend"][4])           # three times the predictions' work

@@ -1,6 +1,7 @@
 """The landing re-solve at a touch-down (paper §III-C) in the cases around a rebound: a touch-down
 that still rises, one that rises beyond the leg's reach, a bounce after the landing, a warm
-re-solve whose Hessian regularisation ran away, and the barrier's start by how near the warm start is."""
+re-solve whose Hessian regularisation ran away, the barrier's start by how near the warm start is, and
+the warm start between two solved touch-downs."""
 import math
 
 import numpy as np
@@ -149,3 +150,46 @@ def test_a_touch_down_near_a_prediction_starts_the_barrier_low_and_reaches_the_s
     assert np.linalg.norm((c_td - c._points[0][0]) / LD.WARM_SCALE) > LD.WARM_NEAR
     c.solve(c_td, warm=True, near=LD.WARM_NEAR)
     assert c.last_start == "far"
+
+
+def test_the_warm_start_between_two_solved_states_is_their_secant_blend():
+    """landing._warm_start: the nearest solution moved towards the second-nearest by the share of the
+    state's projection on the segment between theirs (WARM_SCALE units), clipped to [0, 1]; the nearest
+    alone beyond it, or without ``blend``."""
+    from fslip_planner.landing import WARM_SCALE, _warm_start
+    a, b = np.array([0.0, 0.9, 0.2, -3.0, -38.0]), np.array([-0.05, 0.9, 0.2, -3.0, -38.0])
+    pts = [(a, np.array([1.0, 2.0]), np.array([3.0]), np.array([5.0, 6.0])),
+           (b, np.array([3.0, 4.0]), np.array([7.0]), np.array([9.0, 10.0]))]
+    d2, xv, lg, lx, t = _warm_start(pts, a + 0.25 * (b - a))
+    assert t == 0.25 and d2 == np.sum((0.25 * (b - a) / WARM_SCALE) ** 2)
+    np.testing.assert_allclose(xv, [1.5, 2.5])
+    np.testing.assert_allclose(lg, [4.0])
+    np.testing.assert_allclose(lx, [6.0, 7.0])
+    x_off = a + 0.75 * (b - a) + np.array([0.0, 0.0, 0.0, 0.1, 0.0])     # nearer b, off the segment
+    _, xv, _, _, t = _warm_start(pts, x_off)
+    assert math.isclose(t, 0.25) and math.isclose(xv[0], 2.5)              # its projection, from b
+    for x0 in (a - 0.5 * (b - a), a + 0.25 * (b - a)):                    # beyond a; or not asked to blend
+        d2, xv, lg, lx, t = _warm_start(pts, x0, blend=x0[0] > 0)
+        assert t == 0.0 and xv is pts[0][1] and lg is pts[0][2] and lx is pts[0][3]
+    assert _warm_start(pts[:1], b)[4] == 0.0
+
+
+def test_a_touch_down_between_two_solved_ones_reaches_the_same_plan_from_their_blend():
+    """A backflip touch-down with the COM between two leans solved before (as two of the predictions
+    a lift-off makes): the re-solve warm from their blend (FlipSession's touch-down) reaches the plan
+    the re-solve from the nearest alone reaches, in no more iterations."""
+    s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
+    prob = LandingProblem(s.robot.params, s.robot.L0, near_start=True)
+
+    def state(x, xd=0.21, zd=-3.153, H=-38.49):
+        return np.array([x, math.sqrt(0.948 ** 2 - x * x), xd, zd, H])
+    plans = {}
+    for blend in (False, True):
+        prob.forget()
+        prob.solve(state(-0.045), warm=False)
+        prob.solve(state(-0.095), warm=True)
+        plans[blend] = prob.solve(state(-0.066, 0.197, -3.165, -38.27), warm=True, near=1.25, blend=blend)
+        assert prob.last_start == "near" and (prob.last_blend > 0.2) == blend
+    assert plans[True].iterations <= plans[False].iterations
+    np.testing.assert_allclose(plans[True].X, plans[False].X, atol=1e-3)
+    assert abs(plans[True].t[-1] - plans[False].t[-1]) < 1e-3

@@ -391,8 +391,9 @@ class FlipSession:
     def landing_reference(self, state: MeasuredState) -> Optional[Reference]:
         """LANDING reference at TOUCH_DOWN (None if there was no lift-off of this flip).
 
-        Warm re-solve from the nearest touch-down solved before (the nominal one, those predicted at the
-        lift-off: predict_landing); if IPOPT fails: cold, then with the momentum left free (the flywheel
+        Warm re-solve from the touch-downs solved before (the nominal one, those predicted at the lift-off:
+        predict_landing), the nearest's solution blended towards the second-nearest's
+        (landing._warm_start); if IPOPT fails: cold, then with the momentum left free (the flywheel
         keeps spinning), and as a last resort a blend to standing
         (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out.  A
         touch-down whose COM rises beyond the leg's reach (:func:`landing.rise_beyond_reach`: a foot
@@ -413,7 +414,7 @@ class FlipSession:
             self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         fig.update(predictions_left=float(left), predictions_left_time=t0 - t_left)
         sol, fallback = None, 0
-        attempts = [(lambda: self._landing.solve(x0, warm=True, near=WARM_NEAR)),
+        attempts = [(lambda: self._landing.solve(x0, warm=True, near=WARM_NEAR, blend=True)),
                     (lambda: self._landing.solve(x0, warm=False)),
                     (lambda: self._free_landing().solve(x0, warm=False))]
         beyond = rise_beyond_reach(x0, self.robot.params)
