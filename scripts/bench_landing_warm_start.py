@@ -21,7 +21,6 @@ The prediction columns give what each strategy spends in the flight (iterations,
 from __future__ import annotations
 
 import argparse
-import math
 import statistics
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -72,8 +71,9 @@ def _touch_downs(*args) -> list:
 
 def _shorter_fall(x, dh):
     """The touch-down state ``x`` after a fall ``dh`` shorter (ż from the same flight)."""
+    from fslip_planner.fslip import touchdown_zdot
     x = np.array(x, float)
-    x[3] = -math.sqrt(max(x[3] ** 2 - 2.0 * 9.81 * dh, 0.0))
+    x[3] = touchdown_zdot(x[3], -dh)
     return x
 
 

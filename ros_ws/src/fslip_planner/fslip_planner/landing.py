@@ -172,13 +172,12 @@ def _warm_start(points, x0, blend=True):
     (docs/measurements.md, "The touch-down's warm start between two predictions")."""
     d2 = [float(np.sum(((q[0] - x0) / WARM_SCALE) ** 2)) for q in points]
     order = np.argsort(d2, kind="stable")
-    near = points[order[0]]
-    if not blend or len(points) < 2:
-        return d2[order[0]], near[1], near[2], near[3], 0.0
-    other = points[order[1]]
-    a, b = (x0 - near[0]) / WARM_SCALE, (other[0] - near[0]) / WARM_SCALE
-    bb = float(b @ b)
-    t = float(np.clip(float(a @ b) / bb, 0.0, 1.0)) if bb > 0.0 else 0.0
+    near, t = points[order[0]], 0.0
+    if blend and len(points) > 1:
+        other = points[order[1]]
+        a, b = (x0 - near[0]) / WARM_SCALE, (other[0] - near[0]) / WARM_SCALE
+        bb = float(b @ b)
+        t = float(np.clip(float(a @ b) / bb, 0.0, 1.0)) if bb > 0.0 else 0.0
     if t == 0.0:
         return d2[order[0]], near[1], near[2], near[3], 0.0
     return (d2[order[0]],) + tuple((1.0 - t) * near[i] + t * other[i] for i in (1, 2, 3)) + (t,)
