@@ -7,6 +7,7 @@ flywheel saturates and the body over-rotates or the legs fold).
 
 Landing tallies (scripts/bench_landings.py) are in docs/measurements.md; the start time below lands
 the backflip, the frontflip and flip A, and the tests guard that the pipeline keeps doing so."""
+import json
 import math
 
 import numpy as np
@@ -76,10 +77,13 @@ def _nudged_backflip(axis_weight=None):
 
 def test_flight_holds_the_flywheel_axis_through_the_tuck():
     """The somersault turns about the robot's intermediate principal axis with the flywheel spinning
-    against the body: unstable.  The flight's axis output keeps the pelvis y axis on world y until
-    T1 after a roll impulse at the lift-off; without it the same backflip is tilted ten times more."""
+    against the body: unstable.  After a roll impulse at the lift-off the flight's axis output keeps
+    the pelvis y axis within a third of the tilt the same backflip has at T1 without it.  It turns the
+    pelvis with the legs; since their hip pitch and knee are held equal (gains["leg_symmetry"]) it has
+    less to turn it with: 2.8 deg at T1 before, ~14 now (docs/tuning.md, gains.leg_symmetry; the
+    backflip falls after this impulse either way)."""
     held, loose = _axis_tilt_at_t1(_nudged_backflip()), _axis_tilt_at_t1(_nudged_backflip(axis_weight=0.0))
-    assert held < 5.0 and held < 0.2 * loose, (held, loose)          # measured: 2.8 and 35 deg
+    assert held < 20.0 and held < 0.4 * loose, (held, loose)          # measured: 13.6 and 43.5 deg
 
 
 def test_backflip_lands_and_stands(backflip):
@@ -296,6 +300,9 @@ def test_a_backflip_that_touches_down_yawing_lands_and_stands():
     touch-down."""
     from flip_tools.perturb import read_noise
     sim, ctl = robot()
+    # the case needs a flight that ends yawing: the legs' symmetry in the flight (gains["leg_symmetry"])
+    # removes most of that yaw, so it is off here (the landing is what is tested)
+    ctl.flight.o_sym.weight = 0.0
     z_stand = float(sim.standing_qpos[2])
     plant = read_noise(sim, 1e-4, round(0.9 * 1e4), 0.9)
     yaw_rate = {}
@@ -408,3 +415,50 @@ def test_bench_landing_warm_start_replays_a_touch_down_under_each_strategy():
     assert its["blend"] <= its["nearest"]
     assert rows["retry"][6] == "0" and rows["falls"][6] == "0"
     assert int(rows["falls"][4]) > int(rows["blend"][4])           # three times the predictions' work
+
+
+def backflip_from_a_stance_with_one_foot_ahead(start=1.5, shift=0.0024, **overrides):
+    """A backflip (read noise 1e-4 seeded by its start) of a robot that stood from the standing posture
+    with its left hip pitch -``shift`` and its right +``shift`` rad: one foot ~4 mm ahead of the other, as
+    a landing leaves them (docs/measurements.md, "Flips in a row").  Returns (run, plant, per-FLIGHT-tick
+    hip-pitch difference of the legs, pelvis yaw rate at the first LANDING tick)."""
+    from flip_tools.perturb import read_noise
+    from tsc_controller.config import config_overrides
+    sim = Simulator(motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    m = sim.model
+    q = sim.standing_qpos.copy()
+    q[m.jnt_qposadr[m.joint("left_hip_pitch").id]] -= shift
+    q[m.jnt_qposadr[m.joint("right_hip_pitch").id]] += shift
+    sim.reset(q)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
+                     **(config_overrides(json.dumps(overrides)) if overrides else {}))
+    plant = read_noise(sim, 1e-4, round(start * 1e4), start)
+    apart, td = [], {}
+    ql, qr = (m.jnt_qposadr[m.joint(f"{s}_hip_pitch").id] for s in ("left", "right"))
+
+    def watch(sim, ctl, u, info):
+        if info["domain"] == 2:
+            apart.append(float(sim.data.qpos[ql] - sim.data.qpos[qr]))
+        elif info["domain"] == 3 and not td:
+            td["yaw_rate"] = float(sim.pelvis_twist("world")[1][2])
+
+    r = of.run("backflip", seconds=start + 8.0, start=start, sim=sim, controller=ctl, every=10, plant=plant,
+               on_step=watch, apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
+    return r, plant, np.array(apart), td.get("yaw_rate")
+
+
+def test_a_backflip_from_a_stance_with_one_foot_ahead_lands():
+    """Issue 26, item 1 (a second flip falls): a first landing leaves one foot a few mm ahead of the
+    other, and from such a stance backflips fell in their flight (6 of 6 start times, 1.5-2.0 s, with the
+    legs left to their per-leg outputs: ``gains["leg_symmetry"]`` weight 0).  The push leaves the legs
+    0.014 rad apart in hip pitch; the legs drifted further apart through the flight (0.13 rad by T1),
+    the pelvis yawed, and the flywheel's momentum growing after T1 along the yawed pelvis axis turned
+    into a yaw rate of 1.5-2 rad/s at the touch-down, which rolled the robot over.  With the legs held
+    mirror-symmetric in the flight, they stay within 0.03 rad of each other, the touch-down comes with
+    little yaw rate, and the robot lands."""
+    r, plant, apart, yaw_rate = backflip_from_a_stance_with_one_foot_ahead()
+    assert apart.size > 0 and yaw_rate is not None
+    assert np.abs(apart).max() < 0.03, np.abs(apart).max()
+    assert abs(yaw_rate) < 0.8, yaw_rate
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"

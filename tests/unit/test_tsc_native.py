@@ -145,7 +145,7 @@ def _all_outputs(ctl):
     """Every output object of a controller (each domain's)."""
     f = ctl.flight
     outs = [*ctl.ground.outputs, *ctl.jumping.outputs, f.o_Hfw, f.o_pitch, *f.o_Lleg, *f.o_beta, *f.o_toe,
-            f.o_j_pre, f.o_j_post, *ctl.ground.o_swing, f.o_axis]
+            f.o_j_pre, f.o_j_post, *ctl.ground.o_swing, f.o_axis, f.o_sym]
     return outs
 
 

@@ -16,7 +16,7 @@ def ctl():
 
 def _outputs(c):
     f = c.flight
-    return c.ground.outputs + [f.o_Hfw, f.o_j_pre, f.o_j_post, f.o_axis] + f.o_Lleg + f.o_beta + f.o_toe
+    return c.ground.outputs + [f.o_Hfw, f.o_j_pre, f.o_j_post, f.o_axis, f.o_sym] + f.o_Lleg + f.o_beta + f.o_toe
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -45,6 +45,29 @@ def test_output_jacobians_and_drifts(ctl, seed):
             assert np.allclose(ydot, J @ v)
         else:
             assert np.allclose(y, J @ v)
+
+
+def test_leg_asymmetry_is_zero_for_mirrored_legs_and_names_the_leg_ahead(ctl):
+    """LegAsymmetry (the somersault flight's leg_symmetry output): 0 in the model's reference posture,
+    whose legs mirror each other; one foot ahead of the other (left hip pitch +d, right -d) shows as 2d
+    in its hip-pitch row, a longer left leg (knee) in its knee row, and hip roll or yaw turned the same
+    way on both legs (what the pelvis-axis hold uses) not at all."""
+    dyn = ctl.dyn
+    o = ctl.flight.o_sym
+    assert [j for j, _ in o.PAIRS] == ["hip_pitch", "knee"]
+    q = dyn.q_ref.copy()
+    dyn.update(q, np.zeros(dyn.nv))
+    assert np.abs(o.evaluate(dyn)[0]).max() < 1e-12
+    d = 0.0024
+    q2 = q.copy()
+    q2[dyn.q_index("left_hip_pitch")] += d
+    q2[dyn.q_index("right_hip_pitch")] -= d
+    q2[dyn.q_index("left_knee")] += 0.01
+    for j in ("hip_roll", "hip_yaw"):
+        q2[dyn.q_index(f"left_{j}")] += 0.02
+        q2[dyn.q_index(f"right_{j}")] += 0.02
+    dyn.update(q2, np.zeros(dyn.nv))
+    assert o.evaluate(dyn)[0] == pytest.approx([2 * d, 0.01])
 
 
 def test_momentum_outputs_match_definitions(ctl):

@@ -40,6 +40,12 @@ DEFAULT_GAINS = {
     # the turn about it with the flywheel spinning against the body is unstable (a gyrostat): roll/yaw
     # grow by touch-down unless held.  Not in a hop (docs/tuning.md, gains.axis)
     "axis": (10.0, 100.0, 20.0),
+    # FLIGHT of a somersault: the legs' hip pitch and knee held equal (LegAsymmetry at 0; not in the
+    # paper).  Left to the per-leg outputs, one leg swings ahead of the other, the pelvis yaws, and after
+    # T1 the flywheel's momentum growing along the yawed pelvis axis turns into a yaw rate that rolls the
+    # robot over in the landing: backflips from a stance with one foot 4 mm ahead, and second backflips,
+    # fell.  It costs the axis hold part of its reach (docs/tuning.md, gains.leg_symmetry).  Not in a hop
+    "leg_symmetry": (10.0, 100.0, 20.0),
 }
 
 # JUMPING overrides (name: (weight, kp, kd)).  COM weight 100 as on the ground, so the push leaves with

@@ -22,7 +22,8 @@ class Flight:
     length; before T1 the motor joints but the knees held at their lift-off values (and, in a
     somersault, the pelvis axis along world y; with ``flight_legs_preplaced`` the hip pitches give way
     to the leg angles from T1/2), after T1 the feet placed for the touch-down (leg angle, toe pitch)
-    and the hips' roll and yaw held (eq. Y^F_2)."""
+    and the hips' roll and yaw held (eq. Y^F_2); in a somersault the two legs' hip pitch and knee held
+    equal throughout (LegAsymmetry at 0)."""
     domain = Domain.FLIGHT
 
     def __init__(self, dyn: Dynamics, cfg: ControllerConfig, pitch):
@@ -40,6 +41,8 @@ class Flight:
         self.o_j_pre = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_PRE_T1)
         self.o_j_post = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_POST_T1)
         self.o_j_mid = _mk(O.JointPositions, "joints", g, joints=MOTOR_HELD_MID)
+        self.o_sym = _mk(O.LegAsymmetry, "leg_symmetry", g)
+        self._z_sym = np.zeros(self.o_sym.dim)
         self.state = None                # the lift-off posture and momentum (the first FLIGHT tick's)
 
     def enter(self):
@@ -77,6 +80,9 @@ class Flight:
             outs, des = [self.o_Hfw], [Desired(*self._momentum_transmission(smp, pitch), z)]
         outs = outs + self.o_Lleg
         des = des + [d("L", f["L"][k]) for k in range(2)]
+        if somersault and self.o_sym.weight > 0.0:            # see config.DEFAULT_GAINS["leg_symmetry"]
+            outs.append(self.o_sym)
+            des.append(Desired(self._z_sym, self._z_sym, self._z_sym))
         bplus = ref.parameters.get("beta_liftoff") if ref is not None else None
         on_pelvis = "phi_pitch" in smp and self.cfg.flight_legs_on_pelvis
         preplace = (somersault and on_pelvis and bplus is not None and self.cfg.flight_legs_preplaced

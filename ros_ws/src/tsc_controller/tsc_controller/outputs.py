@@ -291,6 +291,39 @@ class JointPositions(Output):
         return "joints", ij, [], self.dim
 
 
+class LegAsymmetry(Output):
+    """The legs' departure from mirror symmetry in the sagittal plane, y = q_left + c q_right per joint
+    with c = -1: left minus right of hip pitch and knee (one leg ahead of, or longer than, the other).
+    Hip roll and yaw, mirrored joints (c = +1), are left out: the pelvis-axis hold turns the pelvis with
+    them.  Linear in q: J is constant, the drift 0.  A somersault's FLIGHT output
+    (config.DEFAULT_GAINS["leg_symmetry"]; not in the paper)."""
+
+    PAIRS = (("hip_pitch", -1.0), ("knee", -1.0))      # (joint, c)
+    dim = len(PAIRS)
+
+    def __init__(self, name="leg_symmetry", **kw):
+        super().__init__(name, **kw)
+        self._idx = None
+
+    def _indices(self, dyn):
+        """Per row: (q, v index of the left joint, q, v index of the right one)."""
+        if self._idx is None:
+            self._idx = [(dyn.q_index(f"left_{j}"), dyn.v_index(f"left_{j}"),
+                          dyn.q_index(f"right_{j}"), dyn.v_index(f"right_{j}")) for j, _ in self.PAIRS]
+        return self._idx
+
+    def evaluate(self, dyn):
+        J = np.zeros((self.dim, dyn.nv))
+        y = np.zeros(self.dim)
+        for k, ((ql, vl, qr, vr), (_, c)) in enumerate(zip(self._indices(dyn), self.PAIRS)):
+            J[k, vl], J[k, vr] = 1.0, c
+            y[k] = dyn.q[ql] + c * dyn.q[qr]
+        return y, J, np.zeros(self.dim), J @ dyn.v
+
+    def native_spec(self, dyn):
+        return "joint_pairs", [i for row in self._indices(dyn) for i in row], [c for _, c in self.PAIRS], self.dim
+
+
 class FootPitch(Output):
     """Toe pitch: angle of the heel->toe line above the horizontal, atan2(z_toe - z_heel, x_toe - x_heel)
     (0 = flat, + = toe up), mean of the feet.  An angle, not its sine (z_toe - z_heel)/l: the sine's

@@ -22,6 +22,7 @@ namespace
     FOOT_POINTS,  // FootPoints
     PITCH,        // SagittalPitch (value given per call)
     AXIS,         // PelvisAxisTilt
+    JOINT_PAIRS,  // LegAsymmetry
   };
 
   struct Spec
@@ -51,8 +52,9 @@ namespace
   Kind kind_of(const std::string & s)
   {
     static const char * names[] = {"centroidal", "flywheel", "leg_length", "leg_angle", "com",
-                                   "pelvis", "joints", "foot_pitch", "foot_points", "pitch", "axis"};
-    for (int k = 0; k < 11; ++k)
+                                   "pelvis", "joints", "foot_pitch", "foot_points", "pitch", "axis",
+                                   "joint_pairs"};
+    for (int k = 0; k < 12; ++k)
       if (s == names[k])
         return Kind(k);
     throw std::invalid_argument("tsc_native: unknown output kind " + s);
