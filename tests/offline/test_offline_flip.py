@@ -7,7 +7,6 @@ flywheel saturates and the body over-rotates or the legs fold).
 
 Landing tallies (scripts/bench_landings.py) are in docs/measurements.md; the start time below lands
 the backflip, the frontflip and flip A, and the tests guard that the pipeline keeps doing so."""
-import json
 import math
 
 import numpy as np
@@ -417,21 +416,19 @@ def test_bench_landing_warm_start_replays_a_touch_down_under_each_strategy():
     assert int(rows["falls"][4]) > int(rows["blend"][4])           # three times the predictions' work
 
 
-def backflip_from_a_stance_with_one_foot_ahead(start=1.5, shift=0.0024, **overrides):
+def backflip_from_a_stance_with_one_foot_ahead(start=1.5, shift=0.0024):
     """A backflip (read noise 1e-4 seeded by its start) of a robot that stood from the standing posture
     with its left hip pitch -``shift`` and its right +``shift`` rad: one foot ~4 mm ahead of the other, as
-    a landing leaves them (docs/measurements.md, "Flips in a row").  Returns (run, plant, per-FLIGHT-tick
+    a landing leaves them (docs/measurements.md, "The legs held symmetric in the flight").  Returns (run, plant, per-FLIGHT-tick
     hip-pitch difference of the legs, pelvis yaw rate at the first LANDING tick)."""
     from flip_tools.perturb import read_noise
-    from tsc_controller.config import config_overrides
     sim = Simulator(motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     m = sim.model
     q = sim.standing_qpos.copy()
     q[m.jnt_qposadr[m.joint("left_hip_pitch").id]] -= shift
     q[m.jnt_qposadr[m.joint("right_hip_pitch").id]] += shift
     sim.reset(q)
-    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
-                     **(config_overrides(json.dumps(overrides)) if overrides else {}))
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     plant = read_noise(sim, 1e-4, round(start * 1e4), start)
     apart, td = [], {}
     ql, qr = (m.jnt_qposadr[m.joint(f"{s}_hip_pitch").id] for s in ("left", "right"))
@@ -453,8 +450,8 @@ def test_a_backflip_from_a_stance_with_one_foot_ahead_lands():
     legs left to their per-leg outputs: ``gains["leg_symmetry"]`` weight 0).  The push leaves the legs
     0.014 rad apart in hip pitch; the legs drifted further apart through the flight (0.13 rad by T1),
     the pelvis yawed, and the flywheel's momentum growing after T1 along the yawed pelvis axis turned
-    into a yaw rate of 1.5-2 rad/s at the touch-down, which rolled the robot over.  With the legs held
-    mirror-symmetric in the flight, they stay within 0.03 rad of each other, the touch-down comes with
+    into a yaw rate of 1.5-2 rad/s at the touch-down, which rolled the robot over.  With the legs' hip
+    pitch and knee held equal in the flight, they stay within 0.03 rad of each other, the touch-down comes with
     little yaw rate, and the robot lands."""
     r, plant, apart, yaw_rate = backflip_from_a_stance_with_one_foot_ahead()
     assert apart.size > 0 and yaw_rate is not None

@@ -54,7 +54,7 @@ def test_leg_asymmetry_is_zero_for_mirrored_legs_and_names_the_leg_ahead(ctl):
     way on both legs (what the pelvis-axis hold uses) not at all."""
     dyn = ctl.dyn
     o = ctl.flight.o_sym
-    assert [j for j, _ in o.PAIRS] == ["hip_pitch", "knee"]
+    assert list(o.JOINTS) == ["hip_pitch", "knee"]
     q = dyn.q_ref.copy()
     dyn.update(q, np.zeros(dyn.nv))
     assert np.abs(o.evaluate(dyn)[0]).max() < 1e-12

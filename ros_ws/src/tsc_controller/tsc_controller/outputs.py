@@ -292,14 +292,13 @@ class JointPositions(Output):
 
 
 class LegAsymmetry(Output):
-    """The legs' departure from mirror symmetry in the sagittal plane, y = q_left + c q_right per joint
-    with c = -1: left minus right of hip pitch and knee (one leg ahead of, or longer than, the other).
-    Hip roll and yaw, mirrored joints (c = +1), are left out: the pelvis-axis hold turns the pelvis with
-    them.  Linear in q: J is constant, the drift 0.  A somersault's FLIGHT output
-    (config.DEFAULT_GAINS["leg_symmetry"]; not in the paper)."""
+    """The legs' departure from mirror symmetry in the sagittal plane: left minus right of hip pitch and
+    knee (one leg ahead of, or longer than, the other).  Hip roll and yaw are left out: the pelvis-axis
+    hold turns the pelvis with them.  Linear in q: J is constant, the drift 0.  A somersault's FLIGHT
+    output (config.DEFAULT_GAINS["leg_symmetry"]; not in the paper)."""
 
-    PAIRS = (("hip_pitch", -1.0), ("knee", -1.0))      # (joint, c)
-    dim = len(PAIRS)
+    JOINTS = ("hip_pitch", "knee")
+    dim = len(JOINTS)
 
     def __init__(self, name="leg_symmetry", **kw):
         super().__init__(name, **kw)
@@ -309,19 +308,19 @@ class LegAsymmetry(Output):
         """Per row: (q, v index of the left joint, q, v index of the right one)."""
         if self._idx is None:
             self._idx = [(dyn.q_index(f"left_{j}"), dyn.v_index(f"left_{j}"),
-                          dyn.q_index(f"right_{j}"), dyn.v_index(f"right_{j}")) for j, _ in self.PAIRS]
+                          dyn.q_index(f"right_{j}"), dyn.v_index(f"right_{j}")) for j in self.JOINTS]
         return self._idx
 
     def evaluate(self, dyn):
         J = np.zeros((self.dim, dyn.nv))
         y = np.zeros(self.dim)
-        for k, ((ql, vl, qr, vr), (_, c)) in enumerate(zip(self._indices(dyn), self.PAIRS)):
-            J[k, vl], J[k, vr] = 1.0, c
-            y[k] = dyn.q[ql] + c * dyn.q[qr]
+        for k, (ql, vl, qr, vr) in enumerate(self._indices(dyn)):
+            J[k, vl], J[k, vr] = 1.0, -1.0
+            y[k] = dyn.q[ql] - dyn.q[qr]
         return y, J, np.zeros(self.dim), J @ dyn.v
 
     def native_spec(self, dyn):
-        return "joint_pairs", [i for row in self._indices(dyn) for i in row], [c for _, c in self.PAIRS], self.dim
+        return "joint_differences", [i for row in self._indices(dyn) for i in row], [], self.dim
 
 
 class FootPitch(Output):

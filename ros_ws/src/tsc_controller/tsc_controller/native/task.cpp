@@ -88,8 +88,8 @@ public:
       case AXIS:
         axis(t, s);
         break;
-      case JOINT_PAIRS:
-        joint_pairs(t, s);
+      case JOINT_DIFFERENCES:
+        joint_differences(t, s);
         break;
       }
     }
@@ -360,20 +360,19 @@ private:
     }
   }
 
-  // outputs.LegAsymmetry: i = (q, v index of the left joint, q, v index of the right one) per row,
-  // f = the right joint's coefficient c per row: y = q_l + c q_r, J = e_l + c e_r, drift 0
-  void joint_pairs(const TickTerms & t, const Spec & s)
+  // outputs.LegAsymmetry: i = (q, v index of the left joint, q, v index of the right one) per row;
+  // y = q_l - q_r, J = e_l - e_r, drift 0
+  void joint_differences(const TickTerms & t, const Spec & s)
   {
     for (long j = 0; j < s.dim; ++j)
     {
       const long row = s.row + j;
       const long ql = s.i[4 * j], vl = s.i[4 * j + 1], qr = s.i[4 * j + 2], vr = s.i[4 * j + 3];
-      const double c = s.f[j];
-      y_[row] = t.q[ql] + c * t.q[qr];
+      y_[row] = t.q[ql] - t.q[qr];
       J_(row, vl) = 1.0;
-      J_(row, vr) = c;
+      J_(row, vr) = -1.0;
       drift_[row] = 0.0;
-      ydot_[row] = t.v[vl] + c * t.v[vr];
+      ydot_[row] = t.v[vl] - t.v[vr];
     }
   }
 

@@ -22,7 +22,7 @@ namespace
     FOOT_POINTS,  // FootPoints
     PITCH,        // SagittalPitch (value given per call)
     AXIS,         // PelvisAxisTilt
-    JOINT_PAIRS,  // LegAsymmetry
+    JOINT_DIFFERENCES,  // LegAsymmetry
   };
 
   struct Spec
@@ -53,7 +53,7 @@ namespace
   {
     static const char * names[] = {"centroidal", "flywheel", "leg_length", "leg_angle", "com",
                                    "pelvis", "joints", "foot_pitch", "foot_points", "pitch", "axis",
-                                   "joint_pairs"};
+                                   "joint_differences"};
     for (int k = 0; k < 12; ++k)
       if (s == names[k])
         return Kind(k);
