@@ -47,14 +47,17 @@ def trajectory(rotation_deg=360.0, final_z=0.9, final_tilt_deg=0.0, flight_time=
 
 
 def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_at: float | None = None,
-                   resent_tail: int = 0, resent_head: int = 0, drop_joint_states=(), **kw) -> dict:
+                   resent_tail: int = 0, resent_head: int = 0, drop_joint_states=(), jumping_turns=(),
+                   **kw) -> dict:
     """Write the bag; returns the trajectory that was written. `contact_events=False` leaves
     /contact_events out; `body_contact_at=T` adds a BODY_CONTACT event (left_knee) at sim time T;
     `resent_tail=N` adds N copies of the last /odom, 50 ms of wall time apart, after the last step
     (what a lockstep simulator re-sends while its stopped controller does not answer);
     `resent_head=N`: the first /odom sent N more times, 50 ms apart, before the copy the controller
     answered (a controller not yet answering at the start);
-    `drop_joint_states` = sample indices whose /joint_states is left out (-1: the last)."""
+    `drop_joint_states` = sample indices whose /joint_states is left out (-1: the last);
+    `jumping_turns` = one JUMPING /fslip/reference per entry (plan ids 1, 2, ...) whose ``turn``
+    parameter is that entry (rad): the flips the planner started."""
     tr = trajectory(**kw)
     store = flip_typestore()
     T = store.types
@@ -100,6 +103,14 @@ def write_flip_bag(path: str | Path, contact_events: bool = True, body_contact_a
                  flight_time=tr["flight_time"], rotation_to_go=tr["rot"], peak_flywheel_speed=250.0,
                  solve_time=0.42, iterations=17)
         put(c_fr, 0.9, ref, "flip_msgs/msg/FlipReference")
+        for i, turn in enumerate(jumping_turns):
+            jref = FR(header=Header(stamp=stamp(0.5 + 0.01 * i), frame_id=""), plan_id=i + 1, domain=1,
+                      start_time=stamp(1.0), t=np.linspace(0, 0.3, 3), output_names=["L"], value=np.full(3, 0.9),
+                      d_value=np.zeros(3), dd_value=np.zeros(3), parameter_names=["x_start", "turn"],
+                      parameter_values=np.array([0.0, float(turn)]), liftoff_zdot=G * tr["flight_time"] / 2,
+                      liftoff_xdot=0.6, flight_time=tr["flight_time"], rotation_to_go=float(turn),
+                      peak_flywheel_speed=250.0, solve_time=0.1, iterations=20)
+            put(c_fr, 0.5 + 0.01 * i, jref, "flip_msgs/msg/FlipReference")
         events = [(tr["t_lo"], 0, 2), (tr["t_td"], 1, 3)] if contact_events else []
         if body_contact_at is not None:
             events.append((body_contact_at, CE.BODY_CONTACT, 3))

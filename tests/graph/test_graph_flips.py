@@ -327,3 +327,6 @@ def test_a_second_flip_on_a_running_graph_starts_where_the_first_landed(ros_grap
     assert np.all(np.abs(pitch[end] + 720.0) < 5.0) and np.all(np.degrees(tilt(od["quat"][end])) < 5.0), \
         (pitch[-1], np.degrees(tilt(od["quat"][-1:])))
     assert np.all(np.abs(od["pos"][end, 2] - od["pos"][0, 2]) < 0.05), (od["pos"][-1, 2], od["pos"][0, 2])
+    # and flip's own verdict (summary.json) judges the run by both flips' turns: landed, not over-rotated
+    s = json.loads((out / "summary.json").read_text())
+    assert s["outcome"] == "landed" and s["flips_started"] == 2 and p.returncode == 0, (s["outcome"], p.returncode)

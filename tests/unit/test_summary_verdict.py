@@ -73,6 +73,29 @@ def test_summary_frontflip_landed(tmp_path):
     json.dumps(s)  # serialisable as is
 
 
+def test_summary_expects_the_turns_of_every_flip_the_planner_started(tmp_path):
+    """Two backflips on one running graph (`flip run backflip --duration`, then `flip request
+    backflip`): the bag's two JUMPING references ask -360 deg each, so -720 deg is a landing, not an
+    over-rotation of the run's first backflip; one started flip that turned twice is over-rotated,
+    and a backflip followed by a frontflip expects no net turn."""
+    import math
+    from flip_tools.summary import summarize_bag
+    from synthetic_bag import write_flip_bag
+    write_flip_bag(tmp_path / "two", rotation_deg=-720.0, final_z=0.9, jumping_turns=(-2 * math.pi, -2 * math.pi))
+    s = summarize_bag(tmp_path / "two", kind="backflip")
+    assert s["outcome"] == "landed" and s["flips_started"] == 2, s
+    assert s["checks"]["rotation"]["expected_deg"] == pytest.approx(-720.0)
+    write_flip_bag(tmp_path / "one", rotation_deg=-720.0, final_z=0.9, jumping_turns=(-2 * math.pi,))
+    s = summarize_bag(tmp_path / "one", kind="backflip")
+    assert s["outcome"] == "over_rotated" and s["flips_started"] == 1, s
+    write_flip_bag(tmp_path / "mixed", rotation_deg=-360.0, final_z=0.9, jumping_turns=(-2 * math.pi, 2 * math.pi))
+    s = summarize_bag(tmp_path / "mixed", kind="backflip")
+    assert s["checks"]["rotation"]["expected_deg"] == pytest.approx(0.0) and s["outcome"] == "over_rotated", s
+    write_flip_bag(tmp_path / "old", rotation_deg=-720.0, final_z=0.9)      # no JUMPING reference: the kind's
+    s = summarize_bag(tmp_path / "old", kind="backflip")
+    assert s["flips_started"] is None and s["checks"]["rotation"]["expected_deg"] == -360.0
+
+
 def test_summary_touchdown_state_shows_the_yaw_a_flip_picked_up(tmp_path):
     """A flip that yaws 8 deg in the air: the bag-only summary reports it at touch-down (the pelvis y
     axis, about which a somersault turns, 8 deg off world y), not at lift-off."""

@@ -9,8 +9,10 @@ value of theta, unlike Euler pitch); it is unwrapped over time and net = theta_e
 Cross-check: the world-frame angular velocity about y (R @ omega_body) integrated over time.
 
 Landed (all must hold; the thresholds are in LANDING_CRITERIA and copied into the summary):
-  |net rotation - expected| <= 45 deg, expected = +360 (frontflip) / -360 (backflip) / 0 (hop),
-      or +-360 when the kind is not known;
+  |net rotation - expected| <= 45 deg, expected = the sum of the turns of the flips the planner
+      started (their JUMPING references' ``turn``: one per flip, so a run with two backflips on one
+      graph expects -720), or for bags without it +360 (frontflip) / -360 (backflip) / 0 (hop) of
+      the run's kind, or +-360 when the kind is not known;
   final tilt (angle of the pelvis z axis from world z) < 20 deg;
   final pelvis height above the landing ground >= 0.6 m;
   at rest: over the last 0.5 s of sim time, |v| < 0.15 m/s and |omega| < 0.5 rad/s;
@@ -427,7 +429,9 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
         at_rest = bool(v < C["rest_max_speed_mps"] and w < C["rest_max_angular_speed_radps"])
     s["at_rest"] = at_rest
 
-    expected = EXPECTED_ROTATION_DEG.get(kind or "")
+    turns = planned_turns_deg(data)
+    s["flips_started"] = None if turns is None else len(turns)
+    expected = EXPECTED_ROTATION_DEG.get(kind or "") if turns is None else float(sum(turns))
     if expected is None:
         # kind not a flip (stand/sim) or unknown: nearest of +-360
         expected = 360.0 if net >= 0 else -360.0
@@ -449,6 +453,15 @@ def _pelvis(s, od, data, kind, ground_z, takeoff_z, notes, body_contact):
     s["unverified"] = [n for n, c in checks.items() if c.get("ok") is None]
 
     _outcome(s, kind, checks, body_contact, expected, net, at_rest, notes)
+
+
+def planned_turns_deg(data: BagData) -> list[float] | None:
+    """The net pitch turn (deg) of each flip the planner started, in plan order: the ``turn``
+    parameter of its JUMPING reference (one per flip); None when the bag's references do not carry it."""
+    fr = data.get("/fslip/reference")
+    turns = {r["plan_id"]: math.degrees(r["parameters"]["turn"]) for r in (fr or {}).get("refs", [])
+             if r["domain"] == JUMPING and "turn" in r["parameters"]}
+    return [turns[k] for k in sorted(turns)] or None
 
 
 def _outcome(s, kind, checks, body_contact, expected, net, at_rest, notes):

@@ -286,7 +286,9 @@ class FlipSession:
         r = self.result
         # x_start and the heading frame: where and how the plans start (published, so that an offline
         # re-run starts there, to the bit)
-        par = {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"], "x_start": self.x_start}
+        par = {"flight_time": r.figures["flight_time"], "beta_liftoff": -r.lift_off["beta"], "x_start": self.x_start,
+               # the body's net pitch turn the flip asks for (rad; + forwards): a bag reader's expectation
+               "turn": 2.0 * math.pi * Jm.SIGN[self.kind]}
         if self.heading is not None:
             par.update(heading=self.heading.psi, heading_pivot_x=self.heading.pivot[0],
                        heading_pivot_y=self.heading.pivot[1])
