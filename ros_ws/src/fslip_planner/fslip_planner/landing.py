@@ -1,6 +1,7 @@
 """Landing optimisation on the FSLIP (paper §III-C), re-solved from the measured post-impact state.
 
-Same transcription and physical constraints as :mod:`fslip_planner.jumping`; the initial state
+Same transcription and physical constraints as :mod:`fslip_planner.jumping` (the knees' load with the
+tangential foot force: :data:`KNEE_TANGENTIAL`); the initial state
 X(0) is an ``opti.parameter`` (post-impact state, foot at the origin), the initial controls are
 free (the impact is over, the leg force starts wherever it is).  Final state at rest standing:
 z_N = z_des, ẋ_N = ż_N = x_N = 0, H_N = 0 (θ̇ = 0), F^s_N = m g (τ_N = u_N = 0), held over
@@ -44,6 +45,12 @@ N_KNOTS = 40
 #: "rebound" fallback in most landings of flip C and D; docs/measurements.md).
 RISE_RESTITUTION = 0.2
 RISE_FLOOR = 0.2
+#: The landing bounds the knees by their load from the axial and the tangential foot force, F^s + ρ(L) f_t
+#: (:attr:`FSLIPParams.knee_tangential`, docs/planner.md), not by F^s alone: a frontflip's landing brakes
+#: with f_t < 0, which relieves the knees, and planned on F^s alone it sinks deeper and slower (flip C landed
+#: 25 of 30 so, 28 with this; docs/measurements.md, "The landing's knees").  The jumping NLP keeps the
+#: robot's setting: planned with it, the frontflips' pushes lift off in their crouch
+KNEE_TANGENTIAL = True
 #: warm starts from a solved neighbour: barrier and bound pushes at 1e-3 (at 1e-6 a neighbour 0.05–0.14 m
 #: away in lean took 35–60 iterations, more than a cold solve's ~25; at 1e-3, 15–18); at most
 #: 60 iterations (at 30, flip C's re-solves fell back to cold ones, which landed worse).  The Hessian's
@@ -57,9 +64,9 @@ WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_
                   "ipopt.warm_start_slack_bound_push": 1e-3, "ipopt.mu_strategy": "monotone",
                   "ipopt.max_iter": 60, "ipopt.tol": 1e-5})
 #: ... and the touch-down's re-solve from a prediction within WARM_NEAR (WARM_SCALE units) with the
-#: barrier at 1e-5: the touch-downs of B, F, A, D (0.2–0.9 units from one) took 13–17 iterations at 1e-3,
-#: 7–13 at 1e-5.  Not flip C's (1.5–1.8 units from its nearest; more iterations and more cold fallbacks
-#: at 1e-5), nor the predictions, which chain 1 unit apart and failed more often at 1e-5
+#: barrier at 1e-5: the touch-downs of B, F, A, D took 13–17 iterations at 1e-3, 7–13 at 1e-5 (with
+#: WARM_NEAR 0.45 instead, A's took 14 against 7, median of 30).  Not flip C's (1.5–1.8 units from its
+#: nearest), nor the predictions, which chain 1 unit apart and failed more often at 1e-5
 NEAR_OPTS = dict(WARM_OPTS, **{"ipopt.mu_init": 1e-5})
 WARM_NEAR = 1.25
 #: solved states kept as warm starts, and the scale of each state component [x, z, ẋ, ż, H] in the
@@ -82,6 +89,8 @@ class LandingProblem:
         """``near_start``: also build the low-barrier solver that :meth:`solve` uses with ``near`` > 0
         (~0.3 s more; only the touch-down's re-solve needs it)."""
         import casadi as ca
+        if KNEE_TANGENTIAL:
+            p = with_knee_tangential(p)
         self.p, self.N = p, N
         opti = ca.Opti()
         X, U, Us, T = Jm._variables(opti, p, N)
@@ -181,6 +190,17 @@ def _warm_start(points, x0, blend=True):
     if t == 0.0:
         return d2[order[0]], near[1], near[2], near[3], 0.0
     return (d2[order[0]],) + tuple((1.0 - t) * near[i] + t * other[i] for i in (1, 2, 3)) + (t,)
+
+
+_TANGENTIAL: dict = {}     # id of the parameters -> (them, kept alive; their knee_tangential copy)
+
+
+def with_knee_tangential(p: F.FSLIPParams) -> F.FSLIPParams:
+    """``p`` with :attr:`FSLIPParams.knee_tangential` on: ``p`` itself, or one copy per parameters (the
+    NLP functions are cached by the parameters' identity)."""
+    if p.knee_tangential:
+        return p
+    return _TANGENTIAL.setdefault(id(p), (p, replace(p, knee_tangential=True)))[1]
 
 
 #: (id of the parameters, L_stand) -> (the parameters, kept alive; {name: LandingProblem})
