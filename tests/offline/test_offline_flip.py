@@ -422,8 +422,8 @@ def test_bench_landing_warm_start_replays_a_touch_down_under_each_strategy():
 def backflip_from_a_stance_with_one_foot_ahead(start=1.5, shift=0.0024):
     """A backflip (read noise 1e-4 seeded by its start) of a robot that stood from the standing posture
     with its left hip pitch -``shift`` and its right +``shift`` rad: one foot ~4 mm ahead of the other, as
-    a landing leaves them (docs/measurements.md, "The legs held symmetric in the flight").  Returns (run, plant, per-FLIGHT-tick
-    hip-pitch difference of the legs, pelvis yaw rate at the first LANDING tick)."""
+    a landing leaves them (docs/measurements.md, "The legs held symmetric in the flight").  Returns (run,
+    plant, per-FLIGHT-tick hip-pitch difference of the legs, pelvis yaw rate at the first LANDING tick)."""
     from flip_tools.perturb import read_noise
     sim = Simulator(motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     m = sim.model
