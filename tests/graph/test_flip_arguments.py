@@ -88,6 +88,9 @@ def test_usage_rejected_and_not_landed_exit_differently(tmp_path):
     refuses (`flip plan`, no ROS); 1: a run whose bag shows no landing (`flip summarize`); 0: landed."""
     assert flip("plan", "backflip", "--apex", "oops", "--out", str(tmp_path / "p")).returncode == 2
     assert flip("run", "backflip", "--plant", "torque_scale=-1").returncode == 2
+    # the request carries no robot: the running graph's is the one that flips
+    r = flip("request", "backflip", "--robot", "cassie-legs3-fw260", "--domain", "99")
+    assert r.returncode == 2 and "--robot" in r.stderr, r.stderr
     r = flip("plan", "backflip", "--apex", "6", "--out", str(tmp_path / "p"))
     assert r.returncode == 4 and "apex" in r.stderr, r.stderr
     from synthetic_bag import write_flip_bag

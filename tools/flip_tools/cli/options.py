@@ -6,17 +6,18 @@ from flip_tools.flip_request import PLATFORM_FLIP_DISTANCE
 from .common import FINITE, NONNEGATIVE, POSITIVE, cpu_latency_arg
 
 
-def scenario_opts(sp, plan=False, flight_check=True):
+def scenario_opts(sp, plan=False, flight_check=True, robot=True):
     """The jump's request (distance, apex, platform; the landing ground's offset but in ``plan``'s
-    subcommands), the robot and (``flight_check``: the subcommands that start a planner)
-    --no-flight-check."""
+    subcommands), the robot (``robot``: the subcommands that build one) and (``flight_check``: the
+    subcommands that start a planner) --no-flight-check."""
     sp.add_argument("--distance", type=FINITE,
                     help=f"forward distance, m (default 0 = in place; {PLATFORM_FLIP_DISTANCE} with --platform)")
     sp.add_argument("--apex", type=NONNEGATIVE, help="COM apex above take-off ground, m (0 = default)")
     sp.add_argument("--platform", type=NONNEGATIVE, help="take-off platform height above the landing ground, m")
     if not plan:
         sp.add_argument("--ground-offset", type=FINITE, help="landing ground offset (scenario raised), m")
-    robot_opts(sp)
+    if robot:
+        robot_opts(sp)
     if flight_check:
         flight_check_opt(sp)
         knee_model_opt(sp)

@@ -18,7 +18,8 @@ from .services import call_request_flip, response_dict
 def add_parser(sub) -> None:
     sp = sub.add_parser("request", help="RequestFlip on a running graph; prints the response")
     sp.add_argument("kind", choices=list(KINDS))
-    scenario_opts(sp, plan=True, flight_check=False)
+    # the request carries kind, apex, distance and platform; the robot is the running graph's
+    scenario_opts(sp, plan=True, flight_check=False, robot=False)
     sp.add_argument("--kind-id", type=int, help=argparse.SUPPRESS)
     sp.add_argument("--domain", type=int, help="default: $ROS_DOMAIN_ID")
     sp.add_argument("--timeout", type=float, default=120.0)
