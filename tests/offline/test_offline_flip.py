@@ -325,7 +325,8 @@ def test_a_platform_frontflip_that_rebounds_tracks_the_re_solve_of_its_next_touc
     from its measured state and the controller tracks that (paper §III-C): the own landing never runs,
     and the robot lands and stands.  Before, the own landing took over at the rebound.  (The start is
     one whose rebound lands under the default and the Haswell OpenBLAS kernels: from 0.7 s it rebounds
-    under both and, with the landing's tangential knee load, falls under Haswell; C lands 28 of 30.)"""
+    under both and, with the landing's tangential knee load and its H_pitch weight at 1, fell under
+    Haswell.)"""
     from cassie_model.model import Scenario
     from flip_tools.perturb import read_noise
     sim = Simulator(scenario=Scenario.platform(0.5), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
@@ -348,9 +349,10 @@ def test_a_platform_frontflip_planned_with_the_knees_tangential_load_lands_with_
     """Flip C with read noise seeded for its 0.7 s start, planned with
     ``knee_tangential`` (the knee torque of the tangential foot force counted): it lands on the tracked
     plans (no own landing, no fallback attempt) and its flywheel turns slower in the landing than in the
-    flight (paper: the landing plan takes the momentum out through the ground; 2,924 / 2,405 rpm
-    measured; from this start the landing planned on the axial force alone peaked above its flight's,
-    2,828 / 2,914, and with the share in the landing only, the default, 2,828 / 2,702)."""
+    flight (paper: the landing plan takes the momentum out through the ground; 2,924 / 2,475 rpm
+    measured; with the share in the landing only, the default, 2,828 / 2,604; with the landing's H_pitch
+    weight at 1 and the landing planned on the axial force alone it had peaked above its flight's,
+    2,828 / 2,914)."""
     from cassie_model.model import Scenario
     from flip_tools.perturb import read_noise
     from flip_tools.summary import RPM_PER_RADPS
@@ -462,3 +464,49 @@ def test_a_backflip_from_a_stance_with_one_foot_ahead_lands():
     assert abs(yaw_rate) < 0.8, yaw_rate
     assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
     assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"
+
+
+def _backflip_195(landing_gains=None):
+    """The 195 N*m design study's backflip (the paper's flywheel motor, the flight on the flywheel
+    momentum output, no flight-torque check) with read noise seeded as scripts/bench_landings.py
+    --noise 1e-4 seeds its 0.3 s start; returns the run, the plant and the controller's COM x error
+    (m) at every tick of the tracked landing plan."""
+    import json
+    from flip_tools.perturb import read_noise
+    from tsc_controller import Domain
+    from tsc_controller.config import config_overrides
+    cfg = {"flight_pitch_output": False}
+    if landing_gains is not None:
+        cfg["landing_gains"] = landing_gains
+    sim = Simulator(motor_speed_scale=SCALE, flywheel_torque=195.0)
+    ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=195.0,
+                     **config_overrides(json.dumps(cfg)))
+    plant = read_noise(sim, 1e-4, round(0.3 * 1e4), 0.3)
+    com_err = []
+
+    def on_step(sim, ctl, u, info):
+        if info["domain"] == Domain.LANDING and "errors" in info:
+            com_err.append(float(np.ravel(info["errors"]["com"])[0]))
+    r = of.run("backflip", seconds=6.0, start=0.3, sim=sim, controller=ctl, every=10, plant=plant,
+               on_step=on_step, apex_height=1.3, motor_speed_scale=SCALE, flywheel_torque=195.0,
+               flight_check=False)
+    r["z_stand"] = float(sim.standing_qpos[2])
+    return r, plant, np.array(com_err)
+
+
+def test_the_landing_brings_a_com_that_lags_its_plan_back_over_the_feet():
+    """The 195 N*m backflip from its 0.3 s start: late in the landing plan (the legs rising from the
+    catch) the COM falls behind the plan and the centre of pressure reaches the heels.  Only a ground
+    force whose moment changes H can then bring the COM forward; with the landing's H_pitch weight at
+    its ground value 1 the QP kept H on the plan, the COM ran 0.18 m behind it, off the heels, and the
+    robot fell backwards 1.8 s after its touch-down.  With ``landing_gains`` H_pitch weight 0.3 the COM
+    stays within a few cm of the plan and the robot lands (docs/tuning.md, landing_gains)."""
+    r, plant, com_err = _backflip_195()
+    assert com_err.size > 1000, "the landing plan was tracked"
+    assert np.abs(com_err).max() < 0.03, np.abs(com_err).max()
+    landings = [ref for _, ref in r["references"] if ref.domain == 3]
+    assert len(landings) == 1 and landings[0].figures["fallback"] == 0.0
+    assert r["ctl"].landing_fallbacks == []
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"
+    of.assert_stands(r["sim"], r["ctl"], r["z_stand"])

@@ -173,6 +173,10 @@ def test_controller_overrides_from_json():
     ctl = Controller(export_mjcf(), **o)
     assert ctl.cfg.cop_margin_domains[int(Domain.JUMPING)] == 0.2 and ctl.cfg.gains == DEFAULT_GAINS
     assert config_overrides("") == {}
+    # the tracked landing's overrides: merged as the other domains', and its outputs use them
+    o = config_overrides('{"landing_gains": {"H_pitch": [0.1, 10, 0]}}')
+    assert o["landing_gains"]["H_pitch"] == (0.1, 10.0, 0.0)
+    assert Controller(export_mjcf(), **o).landing.plan_outputs[0].weight == 0.1
     # the numpy reference tick instead of the compiled one
     assert Controller(export_mjcf(), **config_overrides('{"backend": "python"}')).dyn.native is None
     for bad, why in [('{"backend": "fortran"}', "backend must be one of native, python"),

@@ -53,6 +53,12 @@ DEFAULT_GAINS = {
 # the feet to shape the momentum (docs/tuning.md, jumping_gains)
 JUMPING_GAINS = {"com": (100.0, 100.0, 20.0)}
 
+# LANDING overrides under a tracked landing plan: H_pitch weight 0.3.  Late in the landing, with the
+# centre of pressure at the heels, only a ground force whose moment changes H brings a COM that lags its
+# plan back over the feet; at weight 1 the QP keeps H on the plan and lets the COM run off the heels
+# (docs/tuning.md, landing_gains)
+LANDING_GAINS = {"H_pitch": (0.3, 10.0, 0.0)}
+
 # STANDING overrides: COM kd 40, which damps the foot-to-foot rocking a push starts (with 20 it went on
 # until the robot fell; docs/tuning.md, standing_gains)
 STANDING_GAINS = {"com": (100.0, 100.0, 40.0)}
@@ -192,6 +198,7 @@ class ControllerConfig:
     gains: dict = field(default_factory=lambda: dict(DEFAULT_GAINS))
     jumping_gains: dict = field(default_factory=lambda: dict(JUMPING_GAINS))   # overrides in JUMPING
     standing_gains: dict = field(default_factory=lambda: dict(STANDING_GAINS))  # overrides in STANDING
+    landing_gains: dict = field(default_factory=lambda: dict(LANDING_GAINS))    # in LANDING with a plan
     # domain -> w of w ||u - u_prev||^2 in the QP (torque smoothing).  Without it the torques chatter
     # against the leaf springs: the feet unload early in the push (JUMPING), the springs ring and the
     # legs stretch (FLIGHT with the pitch output), landings fail (LANDING).  docs/tuning.md
@@ -209,7 +216,8 @@ _DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing")
 
 def config_overrides(text: str) -> dict:
     """ControllerConfig overrides from a JSON object (the ``controller`` parameter of ``tsc_node``,
-    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` / ``standing_gains`` entries (name ->
+    ``flip run --controller``): field -> value; ``gains`` / ``jumping_gains`` / ``standing_gains`` /
+    ``landing_gains`` entries (name ->
     [weight, kp, kd]) are merged into the defaults; domain-keyed dicts take domain numbers or names
     ({"JUMPING": 0.2} or {"1": 0.2}).  Raises ValueError with the reason for anything else."""
     import json
@@ -229,7 +237,7 @@ def config_overrides(text: str) -> dict:
         if key not in fields:
             raise ValueError(f"unknown controller setting {key!r}; known: {', '.join(sorted(fields - set(ROBOT_FIELDS)))}")
         cur = getattr(base, key)
-        if key in ("gains", "jumping_gains", "standing_gains"):
+        if key in ("gains", "jumping_gains", "standing_gains", "landing_gains"):
             if not isinstance(val, dict):
                 raise ValueError(f"{key} must be an object name -> [weight, kp, kd]")
             merged = dict(cur)
