@@ -1,4 +1,5 @@
-"""Closed loop without ROS: landing after a full somersault (fallback landing of tsc_controller).
+"""Closed loop without ROS: landing after a full somersault (the fallback landing of tsc_controller;
+and, at the end, a planned flip whose tracked landing plan the COM falls behind).
 
 The robot is launched 0.1 m above standing height with the whole-body pitch rate of a 2π rotation in
 T, runs FLIGHT with a cubic pelvis-pitch reference (momentum transmission into the flywheel), touches
@@ -7,11 +8,13 @@ down upright with 20–25 kg·m²/s of centroidal pitch momentum in the flywheel
 ``landing_moment`` with the COM shifted against the needed centre of pressure, per-foot contact) and
 end standing: pelvis at its standing height, upright, nothing but the feet on the ground."""
 
+import numpy as np
 import pytest
 
 from cassie_model.model import export_mjcf
 from cassie_flip_sim.simulator import Simulator
 from launched_flip import flight_reference, launch
+import offline_flip as of
 from offline_flip import assert_stands
 from tsc_controller import Controller, Domain, StateConverter
 
@@ -88,3 +91,43 @@ def test_own_landing_lets_the_flywheel_take_the_impact_then_removes_the_momentum
     late = (H_at(cfg.landing_late_after + 0.5) - H_at(cfg.landing_late_after + 1.0)) / 0.5
     assert early == pytest.approx(cfg.landing_moment, rel=0.1)
     assert late == pytest.approx(cfg.landing_moment_late, rel=0.1)
+
+
+def _backflip_195(landing_gains=None):
+    """The 195 N*m design study's backflip (the paper's flywheel motor, the flight on the flywheel
+    momentum output, no flight-torque check) with read noise seeded as scripts/bench_landings.py
+    --noise 1e-4 seeds its 0.3 s start; returns the run, the plant and the controller's COM x error
+    (m) at every tick of the tracked landing plan."""
+    from flip_tools.perturb import read_noise
+    robot = dict(ROBOT, flywheel_torque=195.0)
+    cfg = {} if landing_gains is None else {"landing_gains": landing_gains}
+    sim = Simulator(**robot)
+    ctl = Controller(export_mjcf(sim.flywheel), **robot, flight_pitch_output=False, **cfg)
+    plant = read_noise(sim, 1e-4, round(0.3 * 1e4), 0.3)
+    com_err = []
+
+    def on_step(sim, ctl, u, info):
+        if info["domain"] == Domain.LANDING and "errors" in info:
+            com_err.append(float(np.ravel(info["errors"]["com"])[0]))
+    r = of.run("backflip", seconds=6.0, start=0.3, sim=sim, controller=ctl, every=10, plant=plant,
+               on_step=on_step, apex_height=1.3, flight_check=False, **robot)
+    r["z_stand"] = float(sim.standing_qpos[2])
+    return r, plant, np.array(com_err)
+
+
+def test_the_landing_brings_a_com_that_lags_its_plan_back_over_the_feet():
+    """The 195 N*m backflip from its 0.3 s start: late in the landing plan (the legs rising from the
+    catch) the COM falls behind the plan and the centre of pressure reaches the heels.  Only a ground
+    force whose moment changes H can then bring the COM forward; with the landing's H_pitch weight at
+    its ground value 1 the QP kept H on the plan, the COM ran 0.18 m behind it, off the heels, and the
+    robot fell backwards 1.8 s after its touch-down.  With ``landing_gains`` H_pitch weight 0.3 the COM
+    stays within a few cm of the plan and the robot lands (docs/tuning.md, landing_gains)."""
+    r, plant, com_err = _backflip_195()
+    assert com_err.size > 1000, "the landing plan was tracked"
+    assert np.abs(com_err).max() < 0.03, np.abs(com_err).max()
+    landings = [ref for _, ref in r["references"] if ref.domain == 3]
+    assert len(landings) == 1 and landings[0].figures["fallback"] == 0.0
+    assert r["ctl"].landing_fallbacks == []
+    assert r["fell"] is None, f"body contact at t={r['fell']:.3f}"
+    assert of.outcome(r, "backflip", pitch_end=plant.pitch) == "landed"
+    assert_stands(r["sim"], r["ctl"], r["z_stand"])

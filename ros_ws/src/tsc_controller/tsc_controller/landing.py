@@ -12,8 +12,9 @@ from .reference import Domain
 class Landing:
     """LANDING: with a landing reference (after a somersault with ``track_landing_reference``, after a
     hop with ``track_hop_landing_reference``) the ground outputs with the landing gains
-    (``landing_gains`` over ``gains``) track it over the standing targets; without one, the controller's own landing: the standing targets (leg catch, momentum
-    removal, COM against the removal's CoP offset) with an H_pitch weight rising from
+    (``landing_gains`` over ``gains``) track it over the standing targets; without one, the controller's
+    own landing: the standing targets (leg catch, momentum removal, COM against the removal's CoP
+    offset) with an H_pitch weight rising from
     ``landing_H_weight`` over ``landing_H_ramp``."""
     domain = Domain.LANDING
 
