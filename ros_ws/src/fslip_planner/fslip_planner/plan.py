@@ -255,7 +255,7 @@ class FlipSession:
         self.t_start = self.t_liftoff = self.t_touchdown = None
         self.landing_end = None
         self._landing: Optional[LandingProblem] = None
-        self._predicted: list = []      # touch-downs predicted at the lift-off, not solved yet
+        self._predicted: list = []      # (touch-down, warm) predicted at the lift-off, not solved yet
         self._flight_T = None
         self.aborted = False
         #: a lift-off came after the landing's touch-down (a rebound): its flight is a hop, and the next
@@ -311,20 +311,24 @@ class FlipSession:
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         t0 = time.perf_counter()
-        self._predicted = predicted_touchdowns(self._touchdown_state(None), state.com_velocity,
-                                               state.pitch_momentum, self.platform)
+        self._predicted = [(x0, True) for x0 in predicted_touchdowns(  # (state, solved warm)
+            self._touchdown_state(None), state.com_velocity, state.pitch_momentum, self.platform)]
         self._solve_predicted(stop)
         return time.perf_counter() - t0
 
     def _solve_predicted(self, stop=None) -> int:
-        """Solve the predicted touch-downs not solved yet, in their order, until ``stop()``; how many."""
+        """Solve the predicted touch-downs not solved yet, in their order, until ``stop()``; how many solves.
+        One whose warm solve fails is solved cold next (``stop()`` may leave that to the touch-down, which
+        then does it as the lift-off would have): a touch-down near it then starts next to a solution,
+        where a warm re-solve from a farther one may fail too."""
         n = 0
         while self._predicted and not (stop is not None and stop()):
-            x0, n = self._predicted.pop(0), n + 1
+            (x0, warm), n = self._predicted.pop(0), n + 1
             try:
-                self._landing.solve(x0, warm=True)
+                self._landing.solve(x0, warm=warm)
             except RuntimeError:
-                pass                  # the touch-down starts from the other predictions
+                if warm:
+                    self._predicted.insert(0, (x0, False))
         return n
 
     def _touchdown_state(self, state: Optional[MeasuredState]):

@@ -341,7 +341,7 @@ class PlannerNode:
                 self.node.get_logger().warn(said)
             if ref is not None and ref.figures.get('predictions_left'):
                 self.node.get_logger().info(
-                    f'{ref.figures["predictions_left"]:.0f} landing predictions left from the lift-off solved '
+                    f'{ref.figures["predictions_left"]:.0f} landing prediction solves left from the lift-off done '
                     f'at the touch-down first, in {1e3 * ref.figures["predictions_left_time"]:.1f} ms')
         elif ref is not None:
             # the flight reference is out (the simulator holds for it alone): solve the landings this
