@@ -7,8 +7,7 @@ import pytest
 from fslip_planner import flight as Fl
 
 from fslip_planner import plan as P
-from fslip_planner import landing as Ld
-from fslip_planner.landing import PREDICTED_LEAN_SHIFTS, LandingProblem
+from fslip_planner.landing import PREDICTED_LEAN_SHIFTS, WARM_OPTS, WARM_POINTS, LandingProblem
 
 # flips of the somersault robot down from a 0.5 m platform (the published robot cannot turn a flip in
 # the flight its knees give it: tests/unit/test_fslip_feasibility.py)
@@ -452,7 +451,7 @@ def test_a_predicted_touch_down_whose_warm_solve_fails_is_solved_cold():
     touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
                                  support_center=np.array([0.086, 0.0, 0.0]))
     n = len(PREDICTED_LEAN_SHIFTS)
-    for budget, left in ((None, 0.0), (1, 1.0)):     # every solve at the lift-off; the warm attempt only
+    for budget in (None, 1):                       # every solve at the lift-off; the first warm attempt only
         s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
         s.jumping_reference()
         s.started(1.0)
@@ -461,14 +460,14 @@ def test_a_predicted_touch_down_whose_warm_solve_fails_is_solved_cold():
         assert len(lp._points) == 1                   # the plan's nominal touch-down
         opti = lp.opti
         lp.warm = lp.warm_near = ca.nlpsol("capped", "ipopt", {"x": opti.x, "p": opti.p, "f": opti.f, "g": opti.g},
-                                           dict(Ld.WARM_OPTS, **{"ipopt.max_iter": 1}))   # every warm solve fails
+                                           dict(WARM_OPTS, **{"ipopt.max_iter": 1}))   # every warm solve fails
         asked = []
         stop = None if budget is None else (lambda: asked.append(1) or len(asked) > budget)
         s.predict_landing(lift_off, stop=stop)
         assert len(lp._points) == 1 + (n if budget is None else 0)
         ref = s.landing_reference(touch_down)
         assert ref.figures["predictions_left"] == (0.0 if budget is None else 2.0 * n - 1.0)
-        assert len(lp._points) == min(1 + n + 1, Ld.WARM_POINTS)     # each prediction, then the touch-down
+        assert len(lp._points) == min(1 + n + 1, WARM_POINTS)     # each prediction, then the touch-down
         assert ref.figures["fallback"] == 1.0                        # its own warm solve failed too
 
 

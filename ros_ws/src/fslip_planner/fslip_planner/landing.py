@@ -56,11 +56,11 @@ KNEE_TANGENTIAL = True
 #: 60 iterations (at 30, flip C's re-solves fell back to cold ones, which landed worse).  The Hessian's
 #: regularisation at most 1e8 (IPOPT's default 1e20): a warm re-solve of flip A whose regularisation ran
 #: up to 1e16 spent 1.45 s in 60 iterations and failed; capped, it converges in 16 (landings that never
-#: need that much are solved to the bit as before).  Converged to 1e-4 (IPOPT's scaled NLP error): against
-#: 1e-5 the plans differ by at most 0.18 kg·m²/s in H, 0.7 mm in x and 13 ms in duration, and a touch-down
-#: takes ~3 iterations fewer (docs/measurements.md, "The warm solves' tolerance").  Rows that bound one
-#: variable (the initial state, the rest at the end, the heights, the rise) go to IPOPT as bounds
-#: (``detect_simple_bounds``): a smaller KKT system, the same optimum, a warm re-solve ~25 % faster
+#: need that much are solved to the bit as before).  Rows that bound one variable (the initial state, the
+#: rest at the end, the heights, the rise) go to IPOPT as bounds (``detect_simple_bounds``): a smaller KKT
+#: system, the same optimum, a warm re-solve ~25 % faster.  The warm solves stop at tolerance 1e-4 (IPOPT's
+#: scaled NLP error): against 1e-5 the plans differ by at most 0.18 kg·m²/s in H, 0.7 mm in x and 13 ms in
+#: duration, and a touch-down takes ~3 iterations fewer (docs/measurements.md, "The warm solves' tolerance")
 LANDING_IPOPT = {"ipopt.max_hessian_perturbation": 1e8, "detect_simple_bounds": True}
 WARM_OPTS = dict(Jm.IPOPT_OPTS, **LANDING_IPOPT)
 WARM_OPTS.update({"ipopt.warm_start_init_point": "yes", "ipopt.warm_start_bound_push": 1e-3,

@@ -311,7 +311,7 @@ class FlipSession:
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         t0 = time.perf_counter()
-        self._predicted = [(x0, True) for x0 in predicted_touchdowns(  # (state, solved warm)
+        self._predicted = [(x0, True) for x0 in predicted_touchdowns(
             self._touchdown_state(None), state.com_velocity, state.pitch_momentum, self.platform)]
         self._solve_predicted(stop)
         return time.perf_counter() - t0
