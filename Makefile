@@ -84,12 +84,22 @@ demo: setup
 	if [ $$rc -eq 1 ]; then echo "demo: the backflip did not land (see runs/demo/summary.json, runs/demo/fig6.png)"; \
 	elif [ $$rc -ne 0 ]; then exit $$rc; fi
 
+# the unit and offline tiers on TEST_JOBS pytest-xdist workers (a module's tests on one worker, so
+# that its module fixtures run once), then the graph tier on its own: its node processes run in
+# lockstep and on the wall clock, and share the cores with nothing else.  Both tiers always run; the
+# exit code is the first failing one's.
+TEST_JOBS ?= 2
 test: setup
-	$(PY) -m pytest tests -q
+	@u=0; g=0; \
+	echo "$(PY) -m pytest tests/unit tests/offline -q -n $(TEST_JOBS) --dist loadscope"; \
+	$(PY) -m pytest tests/unit tests/offline -q -n $(TEST_JOBS) --dist loadscope || u=$$?; \
+	echo "$(PY) -m pytest tests/graph -q"; \
+	$(PY) -m pytest tests/graph -q || g=$$?; \
+	if [ $$u -ne 0 ]; then exit $$u; fi; exit $$g
 
 # the unit tier (tests/unit: no ROS graph, no long simulation), under a minute
 test-fast: setup
-	$(PY) -m pytest tests/unit -q
+	$(PY) -m pytest tests/unit -q -n $(TEST_JOBS) --dist loadscope
 
 clean-venv:
 	rm -rf $(VENV)
