@@ -434,8 +434,10 @@ def test_flip_run_rejected_and_interrupted(tmp_path):
                         *_stand_in_exes()], capture_output=True, text=True, timeout=300)
     assert r.returncode == 4, r.stdout + r.stderr
     assert "request rejected: apex_height" in r.stdout
+    assert "plots failed" not in r.stdout + r.stderr          # a stand-in's bag plots, without its scene
     s = json.loads((out / "summary.json").read_text())
     assert s["outcome"] == "rejected"
+    assert {"fig6.png", "pelvis.png"} <= set(s["plots"])
     assert all(p["returncode"] == 0 for p in s["processes"].values()), s["processes"]
     dom = json.loads((out / "run.json").read_text())["ros_domain_id"]
     assert _live_processes_of_domain(dom) == []
@@ -449,11 +451,12 @@ def test_flip_run_rejected_and_interrupted(tmp_path):
             if "accepted (plan" in line:
                 break
         p.send_signal(signal.SIGINT)
-        p.communicate(timeout=120)
+        _, err = p.communicate(timeout=120)
     finally:
         if p.poll() is None:
             p.kill()
     assert p.returncode == 130
+    assert "plots failed" not in err
     s = json.loads((out / "summary.json").read_text())
     assert s["topics"]["/clock"] > 0
     assert all(r["returncode"] == 0 for r in s["processes"].values()), s["processes"]

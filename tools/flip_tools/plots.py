@@ -370,6 +370,8 @@ def _scene(data, path):
         model = mujoco.MjModel.from_xml_string(mjcf)
     except Exception:  # noqa: BLE001 - a description that is not a loadable model (a stand-in's)
         return None
+    if model.nbody < 2:                     # a description without a robot body (a stand-in's)
+        return None
     mdata = mujoco.MjData(model)
     frames = qpos_from_bag(model, js, od, fps=200.0)
     t_frames = np.array([float(js["t"][i]) for i, _ in frame_rows(js, od, 200.0)])
