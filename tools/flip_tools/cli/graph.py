@@ -18,6 +18,10 @@ from .params import lockstep_sched, node_cmd, recorder_cmd
 #: wall seconds /tf's recorded count must stand still once the simulator's last step is recorded (the
 #: recorder reports its counts twice a second)
 DERIVED_QUIET_S = 0.6
+#: wall seconds the recorder's counts must stand still when no /clock writer is left before it had the
+#: simulator's last step (the simulator is gone: that step can no longer reach it), so that what it has
+#: queued is written; longer than the second its counts can stand still on a loaded machine
+WRITERS_GONE_QUIET_S = 3.0
 
 
 #: wall seconds sim time must stand still after the controller is paused for the lockstep to count
@@ -188,6 +192,13 @@ class Graph:
                 if st["last_clock_ns"] is not None and st["last_clock_ns"] >= final_ns:
                     # then /tf until its count stands still (a paused lockstep re-sends its state)
                     final_ns, derived, quiet_s = None, True, min(quiet_s, DERIVED_QUIET_S)
+                    last, since = None, time.monotonic()
+                elif st.get("matched", {}).get("/clock", 1) == 0:
+                    # no /clock writer is left and the last step has not reached the recorder: it cannot
+                    # come any more, so only what the recorder has queued is waited for
+                    log(f"the recorder's newest step is sim t = {1e-9 * (st['last_clock_ns'] or 0):.3f} s of "
+                        f"{final:.3f} s and the simulator is gone: waiting for its queue only")
+                    final_ns, quiet_s = None, max(quiet_s, WRITERS_GONE_QUIET_S)
                     last, since = None, time.monotonic()
                 continue
             counts = st.get("counts", {})
