@@ -84,17 +84,17 @@ demo: setup
 	if [ $$rc -eq 1 ]; then echo "demo: the backflip did not land (see runs/demo/summary.json, runs/demo/fig6.png)"; \
 	elif [ $$rc -ne 0 ]; then exit $$rc; fi
 
-# the unit and offline tiers on TEST_JOBS pytest-xdist workers (a module's tests on one worker, so
-# that its module fixtures run once), then the graph tier on its own: its node processes run in
-# lockstep and on the wall clock, and share the cores with nothing else.  Both tiers always run; the
-# exit code is the first failing one's.
+# the unit and offline tiers, then the graph tier, each on TEST_JOBS pytest-xdist workers (a module's
+# tests on one worker, so that its module fixtures run once).  Each graph test has its own ROS domain
+# (an flock'd claim) and its nodes run in lockstep, so two graphs at once give the same runs.  Both
+# tiers always run; the exit code is the first failing one's.
 TEST_JOBS ?= 2
 test: setup
 	@u=0; g=0; \
 	echo "$(PY) -m pytest tests/unit tests/offline -q -n $(TEST_JOBS) --dist loadscope"; \
 	$(PY) -m pytest tests/unit tests/offline -q -n $(TEST_JOBS) --dist loadscope || u=$$?; \
-	echo "$(PY) -m pytest tests/graph -q"; \
-	$(PY) -m pytest tests/graph -q || g=$$?; \
+	echo "$(PY) -m pytest tests/graph -q -n $(TEST_JOBS) --dist loadscope"; \
+	$(PY) -m pytest tests/graph -q -n $(TEST_JOBS) --dist loadscope || g=$$?; \
 	if [ $$u -ne 0 ]; then exit $$u; fi; exit $$g
 
 # the unit tier (tests/unit: no ROS graph, no long simulation), under a minute
