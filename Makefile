@@ -63,7 +63,7 @@ $(VENV)/.stamp-transport: $(VENV)/.stamp-deps $(TRANSPORT)/setup.py $(TRANSPORT)
 	$(PIP) install -q --no-build-isolation --no-deps -e $(TRANSPORT)
 	touch $@
 
-# tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~2 min) here too, and
+# tsc_controller builds its compiled tick (pybind11 on the pin wheel's headers, ~1.5 min) here too, and
 # cassie_flip_sim its compiled step (on the mujoco wheel's headers and library)
 $(VENV)/.stamp-pkgs: $(VENV)/.stamp-deps $(VENV)/.stamp-transport $(foreach p,$(PKGS),$(p)/setup.py $(p)/setup.cfg) $(wildcard ros_ws/src/cassie_model/cassie_model/native/*.h ros_ws/src/tsc_controller/tsc_controller/native/*.cpp ros_ws/src/tsc_controller/tsc_controller/native/*.hpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.cpp ros_ws/src/cassie_flip_sim/cassie_flip_sim/native/*.h)
 	$(PIP) install -q --no-build-isolation --no-deps $(foreach p,$(PKGS),-e $(p))

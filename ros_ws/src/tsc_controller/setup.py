@@ -51,10 +51,13 @@ def native_extension():
          "tsc_controller/native/ground.cpp"],
         include_dirs=[str(prefix / "include"), str(prefix / "include" / "eigen3"), str(ENVELOPE_DIR)],
         depends=[str(ENVELOPE_DIR / "motor_envelope.h")],
+        # PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION: the algorithms the pin wheel's libpinocchio_default
+        # instantiates (for double, Eigen::Ref arguments) are linked from it, not compiled again here
         define_macros=[("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
-                       ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")],
+                       ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12"),
+                       ("PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION", None)],
         library_dirs=[lib],
-        libraries=[f"boost_python{sys.version_info.major}{sys.version_info.minor}"],
+        libraries=[f"boost_python{sys.version_info.major}{sys.version_info.minor}", "pinocchio_default"],
         runtime_library_dirs=[lib],
         extra_compile_args=flags,
         cxx_std=17,
