@@ -38,14 +38,15 @@ def _age(names, by_s=60.0):
 
 
 def held_by(pid):
-    """The participant segments process ``pid`` has mapped: its own (alone in its domain, it maps no
-    other's), whatever other processes on the machine (a parallel test worker's graph) make meanwhile."""
-    names = set()
-    for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
-        path = line.split()[-1] if len(line.split()) >= 6 else ""
-        if path.startswith(f"{SHM_DIR}/fastrtps_"):
-            names.add(Path(path).name)
-    return names & segments()
+    """The participant segments whose ``_el`` lock process ``pid`` holds (/proc/locks: its flocks by
+    inode), whatever other processes on the machine (a parallel test worker's graph) make or map."""
+    inodes = set()
+    for line in Path("/proc/locks").read_text().splitlines():
+        f = line.split()
+        if len(f) >= 6 and f[1] == "FLOCK" and f[4] == str(pid):
+            inodes.add(int(f[5].split(":")[-1]))
+    return {n for n in segments() if (SHM_DIR / f"{n}_el").exists()
+            and (SHM_DIR / f"{n}_el").stat().st_ino in inodes}
 
 
 def test_files_of_a_killed_process_are_removed_those_of_a_live_one_kept():

@@ -102,6 +102,15 @@ class Graph:
             log(f"live view stopped (exit {p.returncode}), the run goes on without it; "
                 f"last lines of {p.log_path}:\n{p.log_tail(5)}")
 
+    def foot_wrench_topics(self) -> list:
+        """The foot wrench topics sim_node publishes (none with wrench_rate 0, nor from a stand-in)."""
+        from cassie_flip_sim.foot_wrench import WRENCH_TOPICS
+        try:
+            pubs = {n for n, _ in self.node.get_publisher_names_and_types_by_node("sim_node", "/")}
+        except Exception:  # noqa: BLE001 - no such node (yet): nothing of it to wait for
+            return []
+        return [t for t in WRENCH_TOPICS if t in pubs]
+
     def wait_recorder_matched(self, topics, timeout: float) -> float:
         """Until the recorder itself reports a matched publisher on every topic."""
         t0 = time.monotonic()

@@ -95,8 +95,10 @@ def start_flip_graph(graph: Graph, args, run_info: dict) -> float:
         topics={"/joint_states": (1, 2), "/motor_command": (1, 2), "/odom": (1, 1), "/clock": (1, 1),
                 "/robot_description_mjcf": (1, 1)},
         timeout=args.ready_timeout, launcher=graph.launcher)
+    # the foot wrenches too: the simulator is released (steps from 0) once the recorder has them all
     took += graph.wait_recorder_matched(["/clock", "/odom", "/joint_states", "/motor_command",
-                                         "/robot_description_mjcf"], args.ready_timeout)
+                                         "/robot_description_mjcf"] + graph.foot_wrench_topics(),
+                                        args.ready_timeout)
     call_trigger(graph.watcher, "/sim/release", args.ready_timeout)
     graph.release_live()
     return took

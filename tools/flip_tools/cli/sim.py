@@ -73,7 +73,7 @@ def start_sim_graph(graph: Graph, args, run_info: dict, stand: bool) -> float | 
         took = graph.watcher.wait_ready(nodes=["sim_node", "state_publisher", "flip_recorder"]
                                         + (["tsc_node"] if stand else []),
                                         topics=topics, timeout=args.ready_timeout, launcher=graph.launcher)
-        took += graph.wait_recorder_matched(list(topics), args.ready_timeout)
+        took += graph.wait_recorder_matched(list(topics) + graph.foot_wrench_topics(), args.ready_timeout)
         graph.release_live()
         if run_info["sim_params"].get("hold"):
             log(call_trigger(graph.watcher, "/sim/release", args.ready_timeout))
