@@ -413,7 +413,8 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
     # the tool ends the run at the planned end (touch-down + settle) and stops the sim there
     assert s["processes"]["sim"]["stopped_by"] == "SIGINT"
     end = json.loads((out / "run.json").read_text())["end_sim_time"]
-    assert end <= s["sim_duration_s"] <= end + 0.5
+    # the tool's log says how the run ended (end reached, the sim's own duration, a stall)
+    assert end <= s["sim_duration_s"] <= end + 0.5, r.stdout + r.stderr
     assert s["topics"]["/fslip/reference"] == 3 and s["topics"]["/contact_events"] == 2
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
     run = json.loads((out / "run.json").read_text())
