@@ -103,7 +103,8 @@ class Graph:
                 f"last lines of {p.log_path}:\n{p.log_tail(5)}")
 
     def foot_wrench_topics(self) -> list:
-        """The foot wrench topics sim_node publishes (none with wrench_rate 0, nor from a stand-in)."""
+        """The foot wrench topics sim_node has publishers on (sim_node makes them whatever its wrench_rate;
+        a stand-in simulator has none)."""
         from cassie_flip_sim.foot_wrench import WRENCH_TOPICS
         try:
             pubs = {n for n, _ in self.node.get_publisher_names_and_types_by_node("sim_node", "/")}
