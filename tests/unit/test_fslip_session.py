@@ -7,7 +7,7 @@ import pytest
 from fslip_planner import flight as Fl
 
 from fslip_planner import plan as P
-from fslip_planner.landing import PREDICTED_LEAN_SHIFTS, WARM_OPTS, WARM_POINTS, LandingProblem
+from fslip_planner.landing import PREDICTED_SHIFTS, WARM_OPTS, WARM_POINTS, LandingProblem
 
 # flips of the somersault robot down from a 0.5 m platform (the published robot cannot turn a flip in
 # the flight its knees give it: tests/unit/test_fslip_feasibility.py)
@@ -402,8 +402,11 @@ def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
     assert len(s._landing._points) == 1                   # stopped: the plan's nominal touch-down only
     took = s.predict_landing(lift_off)
     predicted = np.array([q[0] for q in s._landing._points[1:]])      # after the plan's nominal one
-    assert took is not None and len(predicted) >= 3
-    assert np.allclose(predicted[:, 2:], [0.21, -3.16, -38.5])
+    assert took is not None and len(predicted) == len(PREDICTED_SHIFTS)
+    assert np.allclose(predicted[:, [2, 4]], [0.21, -38.5])
+    # ż of a fall dh shorter than the flight's from 3.16 m/s up to the same height: ż² = 3.16² − 2 g dh
+    dh = np.array([sh[1] for sh in PREDICTED_SHIFTS])
+    assert np.allclose(predicted[:, 3], -np.sqrt(3.16 ** 2 - 2 * 9.81 * dh))
     touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
                                  support_center=np.array([0.086, 0.0, 0.0]))
     ref = s.landing_reference(touch_down)
@@ -416,14 +419,17 @@ def test_the_landings_predicted_at_lift_off_warm_start_the_touch_down():
 
 def test_the_touch_down_plan_does_not_depend_on_how_far_the_lift_off_prediction_got():
     """planner_node stops the lift-off's prediction when the flight is nearly over in sim time, so on a
-    slower machine it solves fewer of the predicted touch-downs.  The touch-down solves those left first
-    (in the same order, from the same warm starts), so its plan is the same to the bit: a graph run and
-    its offline re-run (tests/graph/test_graph_flips.py) agree whatever the machine's speed."""
+    slower machine it solves fewer of the predicted touch-downs.  The touch-down first solves those left,
+    in the same order and from the same warm starts, up to the two nearest to it (its warm start), and
+    forgets the others, so its plan is the same to the bit, and so are the solutions a rebound's re-solve
+    would start from: a graph run and its offline re-run (tests/graph/test_graph_flips.py) agree whatever
+    the machine's speed.  A backflip's touch-down 0.09 m behind the mirrored lean needs the lean
+    predictions only, not those for a shorter fall after them."""
     lift_off = P.MeasuredState(2.0, np.array([0.0, 0.0, 1.0]), np.array([0.21, 0.0, 3.16]), -38.5, -0.05, 0.0,
                                support_center=np.array([0.05, 0.0, 0.0]))
     touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
                                  support_center=np.array([0.086, 0.0, 0.0]))
-    plans = []
+    plans, kept = [], []
     for budget in (None, 1, 0):          # every prediction solved at the lift-off; one; none
         s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
         s.jumping_reference()
@@ -433,24 +439,30 @@ def test_the_touch_down_plan_does_not_depend_on_how_far_the_lift_off_prediction_
         stop = None if budget is None else (lambda: asked.append(1) or len(asked) > budget)
         s.predict_landing(lift_off, stop=stop)
         plans.append(s.landing_reference(touch_down))
-    n = len(PREDICTED_LEAN_SHIFTS)
-    assert [p.figures["predictions_left"] for p in plans] == [0.0, n - 1.0, float(n)]
-    for p in plans[1:]:
+        kept.append(s._landing.solved_states)
+    left = [p.figures["predictions_left"] for p in plans]
+    needed = len(kept[0]) - 2             # kept: the nominal, the predictions up to the two used, the touch-down
+    assert 2 <= needed < len(PREDICTED_SHIFTS)
+    assert left == [0.0, needed - 1.0, float(needed)]
+    for p, k in zip(plans[1:], kept[1:]):
         assert p.figures["fallback"] == 0.0
         np.testing.assert_array_equal(p.value, plans[0].value)
         np.testing.assert_array_equal(p.t, plans[0].t)
+        assert len(k) == len(kept[0]) and all(np.array_equal(a, b) for a, b in zip(k, kept[0]))
 
 
 def test_a_predicted_touch_down_whose_warm_solve_fails_is_solved_cold():
     """A prediction whose warm solve fails (IPOPT's iteration cap) is solved cold next, during the flight
     or, when the flight's budget ran out between the two, at the touch-down: the touch-down then starts
-    next to a solution of every prediction (flip C's one fallback came where three had failed)."""
+    next to a solution of every prediction it needs (flip C's one fallback came where three had failed)."""
     import casadi as ca
     lift_off = P.MeasuredState(2.0, np.array([0.0, 0.0, 1.0]), np.array([0.21, 0.0, 3.16]), -38.5, -0.05, 0.0,
                                support_center=np.array([0.05, 0.0, 0.0]))
     touch_down = P.MeasuredState(2.65, np.array([0.0, 0.0, 0.95]), np.array([0.20, 0.0, -3.165]), -38.39, 0.0, 0.0,
                                  support_center=np.array([0.086, 0.0, 0.0]))
-    n = len(PREDICTED_LEAN_SHIFTS)
+    n = len(PREDICTED_SHIFTS)
+    # the touch-down 0.136 m behind the mirrored lean: its two nearest are the −0.1 and −0.15 m leans
+    needed = PREDICTED_SHIFTS.index((-0.15, 0.0)) + 1
     for budget in (None, 1):                       # every solve at the lift-off; the first warm attempt only
         s = P.FlipSession("backflip", apex_height=1.3, motor_speed_scale=3.0, flywheel_torque=260.0)
         s.jumping_reference()
@@ -466,8 +478,9 @@ def test_a_predicted_touch_down_whose_warm_solve_fails_is_solved_cold():
         s.predict_landing(lift_off, stop=stop)
         assert len(lp._points) == 1 + (n if budget is None else 0)
         ref = s.landing_reference(touch_down)
-        assert ref.figures["predictions_left"] == (0.0 if budget is None else 2.0 * n - 1.0)
-        assert len(lp._points) == min(1 + n + 1, WARM_POINTS)     # each prediction, then the touch-down
+        # those up to the two nearest, each a failed warm solve and a cold one
+        assert ref.figures["predictions_left"] == (0.0 if budget is None else 2.0 * needed - 1.0)
+        assert len(lp._points) == min(1 + needed + 1, WARM_POINTS)     # those, then the touch-down
         assert ref.figures["fallback"] == 1.0                        # its own warm solve failed too
 
 
@@ -483,3 +496,4 @@ def test_a_flight_the_flywheel_cannot_turn_is_refused_unless_the_design_study_tu
     assert s.jumping_reference().domain == P.JUMPING
     assert s.result.figures["flight_torque_needed_tucked"] > 195.0
     assert s.result.figures["flight_torque_needed"] >= s.result.figures["flight_torque_needed_tucked"]
+

@@ -75,18 +75,63 @@ NEAR_OPTS = dict(WARM_OPTS, **{"ipopt.mu_init": 1e-5})
 WARM_NEAR = 1.25
 #: solved states kept as warm starts, and the scale of each state component [x, z, ẋ, ż, H] in the
 #: distance that picks the nearest (a 0.05 m lean, a 0.2 m/s speed, 2 kg m^2/s weigh alike)
-WARM_POINTS = 8
+WARM_POINTS = 10
 WARM_SCALE = np.array([0.05, 0.05, 0.2, 0.2, 2.0])
-#: COM − foot shifts (m) of the touch-downs a lift-off predicts around the mirrored lean
-#: (:func:`predicted_touchdowns`): measured touch-downs came 0.17 m behind to 0.08 m ahead of it, and a
-#: warm start 0.05 m away takes ~15 IPOPT iterations, 0.14 m away as many as a cold one
-PREDICTED_LEAN_SHIFTS = (0.0, -0.05, -0.1, -0.15, 0.05)
+#: the touch-downs a lift-off predicts (:func:`predicted_touchdowns`), each (COM − foot shift from the
+#: mirrored lean, fall shortened; m).  Measured touch-downs came 0.17 m behind to 0.08 m ahead of the
+#: mirrored lean, and fell 0.01 m more to 0.09 m less than the lift-off predicts: the COM meets the ground
+#: higher above the feet when the legs come down longer than they left (flip C, +0.06 m) or the ground is
+#: higher than told (flip D, 0.1 m).  A warm start 0.05 m (or 0.2 m/s of sink) away takes ~15 IPOPT
+#: iterations, 0.14 m away as many as a cold one; the four shorter falls took C's touch-down re-solve
+#: from 12 / 17 iterations (median / max of 30) to 8 / 10 and D's from 11 / 11 to 3 / 4 (docs/measurements.md,
+#: "Predictions for a shorter fall").  In solve order: a touch-down waits for those it needs that the
+#: flight had no time for (C's flight, the longest, needs the shorter falls ahead of the mirror)
+PREDICTED_SHIFTS = ((0.0, 0.0), (-0.05, 0.0), (-0.1, 0.0), (-0.15, 0.0), (0.05, 0.0),
+                    (0.05, 0.08), (0.0, 0.08), (-0.075, 0.08), (-0.15, 0.08))
 COLD_OPTS = dict(Jm.IPOPT_OPTS, **LANDING_IPOPT)
 COLD_OPTS.update({"ipopt.max_iter": 300})
 
 
+class SolveInterrupted(Exception):
+    """A solve stopped by :attr:`LandingProblem.interrupt` (nothing kept from it)."""
+
+
+def _interrupt_callback(problem, nx: int, ng: int):
+    """IPOPT's iteration callback: stops the solve when ``problem.interrupt()`` says so."""
+    import casadi as ca
+
+    class _Interrupt(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct("landing_interrupt", {})
+
+        def get_n_in(self):
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self):
+            return 1
+
+        def get_name_in(self, i):
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i):
+            return "stop"
+
+        def get_sparsity_in(self, i):
+            name = ca.nlpsol_out(i)
+            return (ca.Sparsity.scalar() if name == "f" else ca.Sparsity.dense(nx) if name in ("x", "lam_x")
+                    else ca.Sparsity.dense(ng) if name in ("g", "lam_g") else ca.Sparsity(0, 0))
+
+        def eval(self, arg):
+            return [1 if problem.interrupt is not None and problem.interrupt() else 0]
+
+    return _Interrupt()
+
+
 class LandingProblem:
-    """Landing Opti built once per (params, L_stand, N); :meth:`solve` from a post-impact state."""
+    """Landing Opti built once per (params, L_stand, N); :meth:`solve` from a post-impact state.
+    ``interrupt``: None, or a callable asked at each IPOPT iteration; True stops the solve, which then
+    raises :class:`SolveInterrupted` (planner_node: a contact event came while it solved predictions)."""
 
     def __init__(self, p: F.FSLIPParams, L_stand: float, N: int = N_KNOTS, T_bounds=T_BOUNDS,
                  free_momentum: bool = False, near_start: bool = False):
@@ -122,9 +167,12 @@ class LandingProblem:
         opti.solver("ipopt", dict(Jm.IPOPT_OPTS))     # bakes opti.x / opti.g / opti.p
         nlp = {"x": opti.x, "p": opti.p, "f": opti.f, "g": opti.g}
         self._bounds = ca.Function("bounds", [opti.p], [opti.lbg, opti.ubg])
-        self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, COLD_OPTS)
-        self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, WARM_OPTS)
-        self.warm_near = ca.nlpsol("landing_warm_near", "ipopt", nlp, NEAR_OPTS) if near_start else None
+        self.interrupt = None
+        self._callback = _interrupt_callback(self, opti.nx, opti.ng)
+        cb = {"iteration_callback": self._callback}
+        self.cold = ca.nlpsol("landing_cold", "ipopt", nlp, dict(COLD_OPTS, **cb))
+        self.warm = ca.nlpsol("landing_warm", "ipopt", nlp, dict(WARM_OPTS, **cb))
+        self.warm_near = ca.nlpsol("landing_warm_near", "ipopt", nlp, dict(NEAR_OPTS, **cb)) if near_start else None
         self._unpack = ca.Function("unpack", [opti.x], [X, U, T])
         self._points = []         # (x0, primal, dual g, dual x) of the latest solves, newest last
         self.last_start = None    # how the latest solve started: "near", "far" (warm) or "cold"
@@ -134,6 +182,15 @@ class LandingProblem:
     def has_solutions(self) -> bool:
         """Has a solve succeeded (a warm start exists)?"""
         return bool(self._points)
+
+    @property
+    def solved_states(self) -> list:
+        """The states whose solutions are kept as warm starts, oldest first."""
+        return [q[0] for q in self._points]
+
+    def drop(self, states):
+        """Drop the kept solutions of these states."""
+        self._points = [q for q in self._points if not any(np.array_equal(q[0], x) for x in states)]
 
     def forget(self):
         """Drop the solutions kept as warm starts: the next solves depend on nothing solved before."""
@@ -169,11 +226,20 @@ class LandingProblem:
             lbg, ubg = self._bounds(x0)
             res = self.cold(x0=self._initial_guess(x0), p=x0, lbg=lbg, ubg=ubg)
             stats = self.cold.stats()
+        if stats.get("return_status") == "User_Requested_Stop":
+            raise SolveInterrupted("landing solve interrupted")
         if not stats.get("success", False):
             raise RuntimeError(f"IPOPT (landing): {stats.get('return_status')}")
         self._points = (self._points + [(x0, res["x"], res["lam_g"], res["lam_x"])])[-WARM_POINTS:]
         X, U, T = (np.array(v) for v in self._unpack(res["x"]))
         return _solution(X.T, U.T, float(np.ravel(T)[0]), self.p, t0, stats)
+
+
+def nearest_first(states, x0):
+    """Squared distances of ``states`` to x0 (WARM_SCALE units), and their indices nearest first (ties in
+    the given order): how a warm start picks its solutions."""
+    d2 = [float(np.sum(((np.asarray(x) - x0) / WARM_SCALE) ** 2)) for x in states]
+    return d2, np.argsort(d2, kind="stable")
 
 
 def _warm_start(points, x0, blend=True):
@@ -183,8 +249,7 @@ def _warm_start(points, x0, blend=True):
     the state.  Returns (squared distance to the nearest, primal, dual g, dual x, t); t = 0 is the nearest
     alone, and the only start without ``blend``.  Between two predicted touch-downs it saves iterations
     (docs/measurements.md, "The touch-down's warm start between two predictions")."""
-    d2 = [float(np.sum(((q[0] - x0) / WARM_SCALE) ** 2)) for q in points]
-    order = np.argsort(d2, kind="stable")
+    d2, order = nearest_first([q[0] for q in points], x0)
     near, t = points[order[0]], 0.0
     if blend and len(points) > 1:
         other = points[order[1]]
@@ -268,16 +333,20 @@ def mirrored_touchdown(lift_off, platform):
     return np.array([-r * math.sin(b), r * math.cos(b), lift_off["xdot"], zd, lift_off["momentum"]])
 
 
-def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PREDICTED_LEAN_SHIFTS):
+def predicted_touchdowns(mirrored, com_velocity, momentum, platform, shifts=PREDICTED_SHIFTS):
     """FSLIP touch-down states [x, z, ẋ, ż, H] a measured lift-off predicts: ẋ and the pitch momentum H
-    kept (conserved in flight), ż from the fall to a landing ground ``platform`` lower, and the lean of
-    ``mirrored`` (the lift-off's, mirrored by the foot placement) shifted by each of ``shifts`` on a leg
-    of the same length."""
+    kept (conserved in flight), and for each (dx, dh) of ``shifts`` the lean of ``mirrored`` (the
+    lift-off's, mirrored by the foot placement) shifted by dx on a leg of the same length, and ż from
+    the fall to a landing ground ``platform`` − dh lower.  A shortened fall the COM never reaches
+    falling (ż² + 2 g (platform − dh) ≤ 0: a low hop) is left out."""
     r = float(np.hypot(mirrored[0], mirrored[1]))
-    zd = float(F.touchdown_zdot(max(float(com_velocity[2]), 0.0), platform))
+    zd_lo = max(float(com_velocity[2]), 0.0)
     out = []
-    for dx in shifts:
+    for dx, dh in shifts:
+        if dh and zd_lo * zd_lo + 2.0 * F.G * (platform - dh) <= 0.0:
+            continue
         x = float(mirrored[0]) + dx
+        zd = float(F.touchdown_zdot(zd_lo, platform - dh))
         out.append(np.array([x, np.sqrt(max(r * r - x * x, 0.0)), float(com_velocity[0]), zd, float(momentum)]))
     return out
 

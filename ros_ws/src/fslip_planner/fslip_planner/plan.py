@@ -22,6 +22,7 @@ from .ground_reference import DT_SAMPLE, ground_reference, knot_outputs, leg_off
 from .heading_frame import HeadingFrame
 from .landing import (WARM_NEAR, LandingProblem, blend_to_standing, mirrored_touchdown, predicted_touchdowns,
                       rise_beyond_reach, shared_problem)
+from .landing_predictions import Predictions
 from .plan_types import MeasuredState, PelvisState, Reference
 
 __all__ = ["FlipSession", "InfeasibleRequest", "MeasuredState", "PelvisState", "Reference", "PlanResult",
@@ -255,7 +256,7 @@ class FlipSession:
         self.t_start = self.t_liftoff = self.t_touchdown = None
         self.landing_end = None
         self._landing: Optional[LandingProblem] = None
-        self._predicted: list = []      # (touch-down, warm) predicted at the lift-off, not solved yet
+        self._predictions = Predictions()      # the touch-downs predicted at the lift-off
         self._flight_T = None
         self.aborted = False
         #: a lift-off came after the landing's touch-down (a rebound): its flight is a hop, and the next
@@ -294,14 +295,16 @@ class FlipSession:
                        heading_pivot_y=self.heading.pivot[1])
         return ground_reference(JUMPING, r.solution, self.x_start, self.robot.L0, r.figures, par)
 
-    def predict_landing(self, state: MeasuredState, stop=None) -> Optional[float]:
+    def predict_landing(self, state: MeasuredState, stop=None, interrupt=None) -> Optional[float]:
         """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
         (:func:`landing.predicted_touchdowns` around the mirrored lean), in order, each warm from the
         nearest solved, so that the touch-down's warm re-solve (§III-C) starts next to its answer.  Run
         after the flight reference is out; ``stop()``, asked before each solve, ends it early (the
-        touch-down is near): the touch-down solves the rest first (:meth:`landing_reference`), so that its
-        plan does not depend on how fast the machine is.  Returns the time spent (s), None when there is
-        nothing to predict."""
+        touch-down is near): the touch-down first solves those of the rest, in order, up to the two its warm
+        start uses (:meth:`landing_reference`), so that its plan does not depend on how fast the machine
+        is.  ``interrupt()``, asked at each IPOPT iteration, abandons the solve under way (it stays to be
+        done) and ends it too (planner_node: a contact event is waiting).  Returns the time spent (s),
+        None when there is nothing to predict."""
         _check_state(state)
         if (self.result is None or self.t_liftoff is None or self.t_touchdown is not None or self.aborted
                 or self.bounced):
@@ -311,25 +314,10 @@ class FlipSession:
         if self._landing is None:
             self._landing = LandingProblem(self.robot.params, self.robot.L0, near_start=True)
         t0 = time.perf_counter()
-        self._predicted = [(x0, True) for x0 in predicted_touchdowns(
-            self._touchdown_state(None), state.com_velocity, state.pitch_momentum, self.platform)]
-        self._solve_predicted(stop)
+        self._predictions.start(predicted_touchdowns(
+            self._touchdown_state(None), state.com_velocity, state.pitch_momentum, self.platform))
+        self._predictions.solve(self._landing, stop, interrupt=interrupt)
         return time.perf_counter() - t0
-
-    def _solve_predicted(self, stop=None) -> int:
-        """Solve the predicted touch-downs not solved yet, in their order, until ``stop()``; how many solves.
-        One whose warm solve fails is solved cold next (``stop()`` may leave that to the touch-down, which
-        then does it as the lift-off would have): a touch-down near it then starts next to a solution,
-        where a warm re-solve from a farther one may fail too."""
-        n = 0
-        while self._predicted and not (stop is not None and stop()):
-            (x0, warm), n = self._predicted.pop(0), n + 1
-            try:
-                self._landing.solve(x0, warm=warm)
-            except RuntimeError:
-                if warm:
-                    self._predicted.insert(0, (x0, False))
-        return n
 
     def _touchdown_state(self, state: Optional[MeasuredState]):
         """FSLIP state [x, z, ẋ, ż, H] at touch-down: the predicted one (``state`` None: the lift-off
@@ -398,8 +386,8 @@ class FlipSession:
         """LANDING reference at TOUCH_DOWN (None if there was no lift-off of this flip).
 
         Warm re-solve from the touch-downs solved before (the nominal one, those predicted at the lift-off:
-        predict_landing), the nearest's solution blended towards the second-nearest's
-        (landing._warm_start); if IPOPT fails: cold, then with the momentum left free (the flywheel
+        predict_landing, solved first up to the two nearest if the flight had no time for them), the
+        nearest's solution blended towards the second-nearest's (landing._warm_start); if IPOPT fails: cold, then with the momentum left free (the flywheel
         keeps spinning), and as a last resort a blend to standing
         (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out.  A
         touch-down whose COM rises beyond the leg's reach (:func:`landing.rise_beyond_reach`: a foot
@@ -408,12 +396,14 @@ class FlipSession:
         if self.result is None or self.t_liftoff is None or state.t < self.t_liftoff:
             return None
         t_left = time.perf_counter()
-        left = self._solve_predicted()        # what the lift-off's prediction had no time for
-        t0 = time.perf_counter()
-        self.t_touchdown = float(state.t)
         if self.heading is not None:
             state = self.heading.measured(state)
         x0 = self._touchdown_state(state)
+        # what the lift-off's prediction had no time for, as far as this touch-down's warm start needs it
+        left = self._predictions.solve(self._landing, needed_by=x0) if self._landing is not None else 0
+        self._predictions.drop_unneeded(self._landing, x0)
+        t0 = time.perf_counter()
+        self.t_touchdown = float(state.t)
         foot_x = float(state.com[0]) - x0[0]        # the measured feet (up to the lean bound)
         fig = dict(self.result.figures)
         if self._landing is None:

@@ -36,6 +36,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from .feasibility import com_of_standing
 from .landing import landing_attempt_note
+from .landing_predictions import PredictionBudget
 from .plan import FlipSession, InfeasibleRequest, MeasuredState, PelvisState
 from .pitch_turns import PitchTurns
 from .plan_geometry import reference_geometry
@@ -46,8 +47,9 @@ KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP
 START_LEAD_S = 0.25
 #: wall seconds a request waits for the simulator's /odom (the measured state a plan starts from)
 STATE_TIMEOUT_S = 2.0
-#: share of the planned flight (sim time) during which the landings a lift-off predicts are solved
-PREDICT_FLIGHT_SHARE = 0.8
+#: share of the planned flight (sim time) during which the landings a lift-off predicts are solved: up to
+#: the planned touch-down, which then waits only for what its warm start needs (FlipSession.landing_reference)
+PREDICT_FLIGHT_SHARE = 1.0
 #: /fslip/com_path and /fslip/targets: the newest, to a viewer that comes later too
 VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -145,7 +147,8 @@ class PlannerNode:
         self._targets = {}              # the foot-target markers of the flip under way, by (ns, id)
         self._warm_up()
         n.create_service(RequestFlip, '/request_flip', self._on_request)
-        n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
+        self._events = n.create_subscription(ContactEvent, '/contact_events', self._on_event, LATCHED_QOS)
+        self._waiting = []              # contact events taken while the landing predictions were solved
         # the simulated robot's description: a flywheel other than the one planned for is refused
         self.sim_mjcf = None
         self._own_flywheel = flywheel_inertial(export_mjcf(self.flywheel))
@@ -346,11 +349,23 @@ class PlannerNode:
         elif ref is not None:
             # the flight reference is out (the simulator holds for it alone): solve the landings this
             # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer;
-            # stopped after PREDICT_FLIGHT_SHARE of the planned flight in sim time (a touch-down waits for it)
+            # stopped before a solve that would end after the planned touch-down (a touch-down waits for it)
+            # or once a contact event comes (the solve under way abandoned; the touch-down solves what it needs)
             end = state.t + PREDICT_FLIGHT_SHARE * float(ref.parameters.get('flight_time', 0.0))
-            took = self.session.predict_landing(state, stop=lambda: self._sim_now() >= end)
+            budget = PredictionBudget(self._sim_now, state.t, end)
+            took = self.session.predict_landing(state, stop=lambda: self._event_waiting() or budget(),
+                                                interrupt=self._event_waiting)
             if took is not None:
                 self.node.get_logger().info(f'landing predicted from the lift-off in {1e3 * took:.1f} ms')
+            while self._waiting:
+                self._on_event(self._waiting.pop(0))
+
+    def _event_waiting(self) -> bool:
+        """Has a contact event come (taken from the subscription's queue into ``_waiting``)?"""
+        got = self._events.handle.take_message(self._events.msg_type, False)
+        if got is not None:
+            self._waiting.append(got[0])
+        return bool(self._waiting)
 
 
 def main(args=None):
