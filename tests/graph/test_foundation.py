@@ -412,12 +412,15 @@ def test_flip_run_end_to_end_with_stand_ins(tmp_path):
                                                                       "planner": 0, "tsc": 0}
     # the tool ends the run at the planned end (touch-down + settle) and stops the sim there
     assert s["processes"]["sim"]["stopped_by"] == "SIGINT"
-    end = json.loads((out / "run.json").read_text())["end_sim_time"]
-    # the tool's log says how the run ended (end reached, the sim's own duration, a stall)
-    assert end <= s["sim_duration_s"] <= end + 0.5, r.stdout + r.stderr
+    run = json.loads((out / "run.json").read_text())
+    # the tool's log says how the run ended (end reached, the sim's own duration, a stall).  The sim time
+    # the tool stopped at, not the bag's: the stand-in simulator publishes best-effort on a wall-clock
+    # timer, without waiting for the recorder, so a loaded machine's bag may lack its last steps
+    end = run["end_sim_time"]
+    assert end - 0.001 <= run["stop_sim_time"] <= end + 0.5, r.stdout + r.stderr
+    assert s["sim_duration_s"] <= run["stop_sim_time"] + 0.5
     assert s["topics"]["/fslip/reference"] == 3 and s["topics"]["/contact_events"] == 2
     assert (out / "bag" / "metadata.yaml").exists() and (out / "fig6.png").exists()
-    run = json.loads((out / "run.json").read_text())
     assert run["sim_params"]["mode"] == "lockstep" and run["sim_params"]["scenario"] == "flat"
     assert _live_processes_of_domain(run["ros_domain_id"]) == []
     # flip holds /dev/cpu_dma_latency at 0 us where it may (flip_tools.cpu_latency), and says which

@@ -141,6 +141,8 @@ def fly(graph: Graph, args, run_info: dict, extra: dict) -> int:
     if callable(end_sim):
         end_sim = end_sim()
     run_info["end_sim_time"] = round(end_sim, 4)
+    # the newest sim time the tool read when it stopped waiting (the bag may lack the last steps)
+    run_info["stop_sim_time"] = None if graph.sim_time is None else round(float(graph.sim_time), 4)
     return rc
 
 
