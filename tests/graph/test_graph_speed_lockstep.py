@@ -364,8 +364,8 @@ def test_bench_graph_versus_runs_pairs_and_compares_them_pair_by_pair():
 
 def test_a_run_stopped_midway_records_odom_and_joint_states_of_the_same_steps(tmp_path):
     """`flip stand` interrupted while stepping (exit 130): the simulator, stopped by SIGINT mid-loop,
-    ends at a step's end: the bag holds /odom and /joint_states of the same steps, the last /clock is
-    the last step's, and its log has the run's summary lines.  (With rclpy's signal handlers, which
+    ends at a step's end: the bag holds /odom and /joint_states of the same steps, no /clock beyond the
+    last step, and its log has the run's summary lines.  (With rclpy's signal handlers, which
     shut the context down from another thread at once, a step could publish its /odom and fail its
     /joint_states, and the end of the run was cut short; that happened in ~1 stop of 3 of `flip run`
     here, less often in this test.)"""
@@ -381,6 +381,8 @@ def test_a_run_stopped_midway_records_odom_and_joint_states_of_the_same_steps(tm
     bag = load_bag(out / "bag", ["/odom", "/joint_states", "/clock"])
     od, js = (np.unique(np.round(bag[t]["t"] / 0.0005)) for t in ("/odom", "/joint_states"))
     assert len(od) > 200 and np.array_equal(od, js), (len(od), len(js), od[-3:], js[-3:])
-    assert round(bag["/clock"]["sim_t"][-1] / 0.0005) == od[-1]
+    # a step publishes its /clock before its state: a clock beyond the last state would be a step cut
+    # short.  /clock is best-effort (depth 1): beside another graph the bag lacked the last 10 of them
+    assert round(bag["/clock"]["sim_t"][-1] / 0.0005) <= od[-1]
     log = (out / "logs" / "sim.log").read_text()
     assert "done:" in log and "loop per step" in log and "cpu per step" in log, log
