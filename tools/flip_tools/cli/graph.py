@@ -321,9 +321,14 @@ def run_graph(args, out: Path, mode: str, run_info: dict, extra: dict, stop_orde
         log(f"interrupted ({e}); stopping everything")
         rc = EXIT_INTERRUPTED
     except Exception as e:  # noqa: BLE001 - graph timeout, a node died, ...
-        log(f"ERROR: {e}")
-        extra["error"] = str(e)
-        rc = EXIT_INFRA
+        if interrupt_latch.signal_name is not None:
+            # the interrupt raised inside an extension's call (rclpy's pybind11) comes out as its error
+            log(f"interrupted ({interrupt_latch.signal_name}: {e}); stopping everything")
+            rc = EXIT_INTERRUPTED
+        else:
+            log(f"ERROR: {e}")
+            extra["error"] = str(e)
+            rc = EXIT_INFRA
     finally:
         interrupt_latch.hold()
         if graph is not None:
