@@ -387,9 +387,9 @@ class FlipSession:
 
         Warm re-solve from the touch-downs solved before (the nominal one, those predicted at the lift-off:
         predict_landing, solved first up to the two nearest if the flight had no time for them), the
-        nearest's solution blended towards the second-nearest's (landing._warm_start); if IPOPT fails: cold, then with the momentum left free (the flywheel
-        keeps spinning), and as a last resort a blend to standing
-        (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out.  A
+        nearest's solution blended towards the second-nearest's (landing._warm_start); if IPOPT fails:
+        cold, then with the momentum left free (the flywheel keeps spinning), and as a last resort a blend
+        to standing (``figures['fallback']`` = 1, 2 or 3 says which), so that a reference always goes out.  A
         touch-down whose COM rises beyond the leg's reach (:func:`landing.rise_beyond_reach`: a foot
         brushing the ground in a rebound) gets the blend at once (``figures['rise_beyond_reach']``)."""
         _check_state(state)

@@ -47,9 +47,6 @@ KINDS = {RequestFlip.Request.BACKFLIP: 'backflip', RequestFlip.Request.FRONTFLIP
 START_LEAD_S = 0.25
 #: wall seconds a request waits for the simulator's /odom (the measured state a plan starts from)
 STATE_TIMEOUT_S = 2.0
-#: share of the planned flight (sim time) during which the landings a lift-off predicts are solved: up to
-#: the planned touch-down, which then waits only for what its warm start needs (FlipSession.landing_reference)
-PREDICT_FLIGHT_SHARE = 1.0
 #: /fslip/com_path and /fslip/targets: the newest, to a viewer that comes later too
 VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -351,7 +348,7 @@ class PlannerNode:
             # lift-off predicts now, so that the touch-down's re-solve starts warm next to its answer;
             # stopped before a solve that would end after the planned touch-down (a touch-down waits for it)
             # or once a contact event comes (the solve under way abandoned; the touch-down solves what it needs)
-            end = state.t + PREDICT_FLIGHT_SHARE * float(ref.parameters.get('flight_time', 0.0))
+            end = state.t + float(ref.parameters.get('flight_time', 0.0))     # the planned touch-down
             budget = PredictionBudget(self._sim_now, state.t, end)
             took = self.session.predict_landing(state, stop=lambda: self._event_waiting() or budget(),
                                                 interrupt=self._event_waiting)
