@@ -149,12 +149,12 @@ def transcribe(opti, X, U, T, p, N, free_controls=None, named=None):
     return fl(X, U)
 
 
-def cost_terms(L, U, dt, N):
-    """Σ (c₁ L̈² + c₂ u² + c₃ τ²) ΔT."""
+def cost_terms(L, U, dt, N, cost=None):
+    """Σ (c₁ L̈² + c₂ u² + c₃ τ²) ΔT (eq. J_Jumping); ``cost``: the coefficients (default :data:`COST`)."""
     import casadi as ca
+    c = COST if cost is None else cost
     Ldd = (L[2:] - 2 * L[1:-1] + L[:-2]) / dt ** 2
-    return (COST["c1"] * ca.sumsqr(Ldd) + COST["c2"] * ca.sumsqr(U[2, :])
-            + COST["c3"] * ca.sumsqr(U[1, :])) * dt
+    return (c["c1"] * ca.sumsqr(Ldd) + c["c2"] * ca.sumsqr(U[2, :]) + c["c3"] * ca.sumsqr(U[1, :])) * dt
 
 
 @dataclass

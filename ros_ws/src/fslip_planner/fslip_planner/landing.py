@@ -31,9 +31,23 @@ from . import jumping as Jm
 from .plan_types import Reference
 
 ALPHA = 1e-1
+#: eq. J_Landing's c₁, c₂, c₃ with the foot torque u weighing as the flywheel torque τ.  Ḣ = τ, and u = −τ
+#: takes the momentum out through the centre of pressure without pushing the COM; at the jump's c₂ = 100 c₃
+#: the optimum takes it out with τ alone, whose push F_t = τ/r swings the COM ahead first and grows |H| past
+#: the touch-down's (a backflip's −38 → −48 kg·m²/s, spun into the flywheel; docs/measurements.md,
+#: "The landing's centre of pressure")
+LANDING_COST = dict(Jm.COST, c2=Jm.COST["c3"])
+#: N, the least normal force the controller's LANDING QP keeps at each toe and heel (tsc_controller's
+#: ``f_min_domains``), and the share of the foot length its centre of pressure keeps from either end
+#: (tsc_controller's JUMPING ``cop_margin``: at the foot's ends the real feet roll).  The landing's ZMP row
+#: (eq. ZMP) narrowed to what the QP can realise, |u| ≤ (F_z − 4 f)(1/2 − m) l, after the touch-down's knot;
+#: with the whole foot (m = 0) flip D's landing plans put the centre of pressure at the toes at a low F_z and
+#: the feet left the ground in most landings
+POINT_FORCE_MIN = 25.0
+COP_MARGIN = 0.2
 # Landing duration bounds (s) and knots.  A somersault lands with up to ~50 kg·m²/s of pitch momentum,
-# which leaves through the foot torque, |u| ≤ F_z l/2 ≈ 34 N·m standing (ZMP): at least ~1.5 s.  With
-# at most 1.2 s the optimum sat on the bound and removed it with flywheel torque τ, whose reaction on
+# which leaves through the foot torque, |u| ≤ F_z l/2 ≈ 34 N·m standing (ZMP; less within the QP's,
+# POINT_FORCE_MIN): at least ~1.5 s.  With at most 1.2 s the optimum sat on the bound and removed it with flywheel torque τ, whose reaction on
 # the leg (F_t = (τ + u)/r) swung the point mass 0.25 m forward and back; the robot tracking that
 # bounced off after a backflip (docs/measurements.md, Landing plan tracked).  40 knots keep ΔT ≤ 0.05 s.
 T_BOUNDS = (0.4, 2.0)
@@ -90,6 +104,17 @@ PREDICTED_SHIFTS = ((0.0, 0.0), (-0.05, 0.0), (-0.1, 0.0), (-0.15, 0.0), (0.05, 
                     (0.05, 0.08), (0.0, 0.08), (-0.075, 0.08), (-0.15, 0.08))
 COLD_OPTS = dict(Jm.IPOPT_OPTS, **LANDING_IPOPT)
 COLD_OPTS.update({"ipopt.max_iter": 300})
+
+
+def _cop_rows(p: F.FSLIPParams, N: int):
+    """(F_z − 4 POINT_FORCE_MIN)(1/2 − COP_MARGIN) l ∓ u ≥ 0 in m g·l units, mapped over N knots: the
+    centre of pressure the controller can realise (eq. ZMP narrowed; see POINT_FORCE_MIN)."""
+    import casadi as ca
+    x, u = ca.SX.sym("x", 5), ca.SX.sym("u", 3)
+    Fz = F.grf(x, u, p)[1]
+    half = (0.5 - COP_MARGIN) * p.foot_length * (Fz - 4.0 * POINT_FORCE_MIN)
+    unit = p.m * p.g * p.foot_length
+    return ca.Function("cop", [x, u], [ca.vertcat(half - u[2], half + u[2]) / unit]).map(N)
 
 
 class SolveInterrupted(Exception):
@@ -151,6 +176,8 @@ class LandingProblem:
         opti.subject_to(opti.bounded(T_bounds[0], T, T_bounds[1]))
         L = Jm.transcribe(opti, X, U, T, p, N)
         self.L = L
+        # not at knot 0: the touch-down's leg, at its full length, may carry less than 4 f
+        opti.subject_to(ca.vec(_cop_rows(p, N - 1)(X[:, 1:], U[:, 1:])) >= 0)
         # a touch-down that is already rising (a rebound's) may go on rising at that rate, no faster
         opti.subject_to(X[3, :] <= ca.fmax(ca.fmax(-RISE_RESTITUTION * self.X0[3], RISE_FLOOR), self.X0[3]))
         rows = slice(0, 4) if free_momentum else slice(0, 5)
@@ -161,7 +188,7 @@ class LandingProblem:
         r = ca.sqrt(X[0, :] ** 2 + X[1, :] ** 2)
         s = L - r
         sd = (s[1:] - s[:-1]) / dt
-        opti.minimize(Jm.cost_terms(L, U, dt, N) + ALPHA * ca.sumsqr(sd) * dt)
+        opti.minimize(Jm.cost_terms(L, U, dt, N, LANDING_COST) + ALPHA * ca.sumsqr(sd) * dt)
         self.opti = opti
         # one IPOPT instance reused for every solve (Opti.solve would rebuild it each time)
         opti.solver("ipopt", dict(Jm.IPOPT_OPTS))     # bakes opti.x / opti.g / opti.p
