@@ -203,6 +203,12 @@ class ControllerConfig:
     # against the leaf springs: the feet unload early in the push (JUMPING), the springs ring and the
     # legs stretch (FLIGHT with the pitch output), landings fail (LANDING).  docs/tuning.md
     torque_smoothing: dict = field(default_factory=lambda: {0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0})
+    # domain -> the flywheel motor's share of that smoothing while the domain tracks a planner reference
+    # (absent: 1).  LANDING 0.1: the flywheel drives no spring, and fully smoothed it kept the flight's
+    # braking torque (~-170 N*m after a backflip) on for ~25 ms after the touch-down, past the plan's, and
+    # spun the flywheel past its flight speed; at 0 its torque chattered through one flip A's rebounds; in
+    # the own landing (no plan) 0.1 collapsed the paper robot's 0.1 m drop (docs/tuning.md)
+    flywheel_smoothing: dict = field(default_factory=lambda: {3: 0.1})
     # after a BODY_CONTACT (a fall) the motors only damp: u = -fall_damping * (motor velocity), within
     # the limits; the flywheel is braked the same way, rather than balancing a fallen robot on it
     fall_damping: float = 5.0         # N*m*s/rad
@@ -211,7 +217,7 @@ class ControllerConfig:
 #: ControllerConfig fields that describe the robot, not the controller: they come from the robot's
 #: own parameters (motor_speed_scale, flywheel_torque), the same in simulator, planner and controller
 ROBOT_FIELDS = ("motor_speed_scale", "flywheel_torque")
-_DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing")
+_DOMAIN_KEYED = ("cop_margin_domains", "f_min_domains", "torque_smoothing", "flywheel_smoothing")
 
 
 def config_overrides(text: str) -> dict:

@@ -268,6 +268,16 @@ class Controller:
                        qp_time=0.0, qp_iter=0, timing={}, grf=(0.0, 0.0))
 
     # -------------------------------------------------------------- the tick
+    def _du_share(self):
+        """Per-motor share of the torque smoothing (``flywheel_smoothing``, while this domain tracks a
+        planner reference), None: all 1."""
+        share = self.cfg.flywheel_smoothing.get(int(self.domain))
+        if share is None or self.refs.get(self.domain) is None or "flywheel" not in self.dyn.motor_names:
+            return None
+        out = np.ones(self.dyn.nu)
+        out[self.dyn.motor_names.index("flywheel")] = share
+        return out
+
     def compute(self, q, v, t, details: bool = True):
         """One TSC tick: returns (u (11,), info dict).  ``details=False`` leaves the predicted forces,
         ground reaction and output errors out of ``info`` (the same u)."""
@@ -300,7 +310,7 @@ class Controller:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
             res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,
                                  self.cfg.cop_margin_domains.get(int(self.domain)), details,
-                                 self.cfg.f_min_domains.get(int(self.domain)))
+                                 self.cfg.f_min_domains.get(int(self.domain)), self._du_share())
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

@@ -361,10 +361,11 @@ class TSC:
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
               w_du: float = 0.0, cop_margin: float | None = None, details: bool = True,
-              f_min: float | None = None) -> QPResult:
+              f_min: float | None = None, du_share=None) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
-        w_du ||u - u_prev||^2 (torque smoothing); ``cop_margin`` and ``f_min`` override the constructor's.
+        w_du ||u - u_prev||^2 (torque smoothing), each motor's term times its ``du_share`` (None: all 1);
+        ``cop_margin`` and ``f_min`` override the constructor's.
         ``details=False`` (compiled task rows only): the same u, without the output errors (``y``)
         and the elimination's arrays (no ``forces``, ``qdd``) in the result."""
         dyn = self.dyn
@@ -400,6 +401,11 @@ class TSC:
                 up = cg + CY[:, nu]
             else:
                 C, lo, up = None, None, None
+        if du_share is not None and w_du > 0.0 and u_prev is not None:
+            d = w_du * (1.0 - np.asarray(du_share, float))     # the smoothing taken off again per motor
+            H = np.array(H, float)
+            H.ravel()[::nu + 1] -= d
+            g = np.asarray(g, float) + d * np.asarray(u_prev, float)
         t0 = time.perf_counter()
         u, status, it = self._solver(0 if C is None else C.shape[0]).solve(H, g, C, lo, up, u_lb, u_ub)
         if status != "solved" or not math.isfinite(u @ u):
