@@ -47,9 +47,10 @@ POINT_FORCE_MIN = 25.0
 COP_MARGIN = 0.2
 # Landing duration bounds (s) and knots.  A somersault lands with up to ~50 kg·m²/s of pitch momentum,
 # which leaves through the foot torque, |u| ≤ F_z l/2 ≈ 34 N·m standing (ZMP; less within the QP's,
-# POINT_FORCE_MIN): at least ~1.5 s.  With at most 1.2 s the optimum sat on the bound and removed it with flywheel torque τ, whose reaction on
-# the leg (F_t = (τ + u)/r) swung the point mass 0.25 m forward and back; the robot tracking that
-# bounced off after a backflip (docs/measurements.md, Landing plan tracked).  40 knots keep ΔT ≤ 0.05 s.
+# POINT_FORCE_MIN): at least ~1.5 s.  With at most 1.2 s the optimum sat on the bound and removed it with
+# flywheel torque τ, whose reaction on the leg (F_t = (τ + u)/r) swung the point mass 0.25 m forward and
+# back; the robot tracking that bounced off after a backflip (docs/measurements.md, Landing plan tracked).
+# 40 knots keep ΔT ≤ 0.05 s.
 T_BOUNDS = (0.4, 2.0)
 N_KNOTS = 40
 #: The plan's COM rises at most RISE_RESTITUTION times the touch-down sink speed (a restitution bound,

@@ -107,6 +107,7 @@ class Controller:
         self.t_enter = None
         self._pending_event = None
         self.u_prev = np.zeros(self.dyn.nu)
+        self._du_shares: dict = {}       # flywheel_smoothing share -> per-motor shares (_du_share)
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
@@ -274,8 +275,10 @@ class Controller:
         share = self.cfg.flywheel_smoothing.get(int(self.domain))
         if share is None or self.refs.get(self.domain) is None or "flywheel" not in self.dyn.motor_names:
             return None
-        out = np.ones(self.dyn.nu)
-        out[self.dyn.motor_names.index("flywheel")] = share
+        out = self._du_shares.get(share)          # built once per share value, not every tick
+        if out is None:
+            out = self._du_shares[share] = np.ones(self.dyn.nu)
+            out[self.dyn.motor_names.index("flywheel")] = share
         return out
 
     def compute(self, q, v, t, details: bool = True):
