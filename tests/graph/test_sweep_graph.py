@@ -2,8 +2,8 @@
 with its knobs given to sim_node only.  Two samples of flip A (1 m forward frontflip) of the
 somersault robot, the robot's mass as built and x1.3 (offline, A lands from 15 of 15 start times as
 built and fell x1.3 from each of 5 tried; the backflip, 12 of 15, fell in one CI graph run): the
-records give the outcomes the same samples give offline (from the graph's own jump start: the
-request's latency sets it), the heavier robot falls where the other lands, and sim_node built the
+records give the outcomes the same samples give offline (from the graph's own jump start, which the
+request's latency sets, and the COM x its plan was anchored at), the heavier robot falls where the other lands, and sim_node built the
 robot with the mass scaled (its log's total mass) while the planner and the controller were given
 nothing of it."""
 import json
@@ -41,8 +41,12 @@ def test_graph_records_have_the_offline_outcomes(graph_sweep):
     for scale, row in rows.items():
         assert row["mode"] == "graph" and row["error"] is None
         assert row["jump_start_s"] > row["start"]          # the request's latency and the plan's lead
-        offline = P.run_sample(P.Sample("A", {"mass_scale": scale, "start": row["jump_start_s"]}))
-        assert offline["outcome"] == row["outcome"], (scale, offline, row)
+        # the offline twin: the same jump start, and the plan anchored where the graph's was (its
+        # planner reads the robot when the plan goes out; from 1 cm behind, flip A fell where it landed)
+        planner = json.loads((out / "runs" / row["sample_id"] / "summary.json").read_text())["planner"]
+        offline = P.run_sample(P.Sample("A", {"mass_scale": scale, "start": row["jump_start_s"]}),
+                               x_start=planner["x_start_m"], heading=planner["heading"])
+        assert offline["outcome"] == row["outcome"], (scale, offline, row, planner)
     landed = rows[1.0]
     assert landed["net_rotation_deg"] == pytest.approx(360.0, abs=45.0)
     assert landed["touchdown_s"] > landed["jump_start_s"] and landed["sim_s"] == pytest.approx(9.0, abs=1e-3)

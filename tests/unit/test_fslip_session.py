@@ -327,6 +327,27 @@ def test_a_plan_starts_where_the_robot_stands():
         assert np.array_equal(ref1.column(name)[0], ref0.column(name)[0])
 
 
+def test_a_plan_is_anchored_where_the_robot_stands_when_it_goes_out():
+    """planner_node reads the robot again once the jump is solved (a robot still settling after its
+    start moves ~1 cm meanwhile, and a flip A whose plan was 1 cm behind the robot fell where the
+    same jump anchored where it stood landed): FlipSession.reanchored keeps the solve and moves the
+    COM targets to the newer state, and refuses a newer state that does not stand."""
+    sess = P.FlipSession("backflip", **FLIP)
+    robot, ground = sess.robot, FLIP["platform_height"]
+    asked = sess.jumping_reference(_pelvis(robot, x=-0.01, ground=ground))
+    solved = sess.result
+    sent = sess.reanchored(_pelvis(robot, x=0.002, ground=ground))
+    assert sess.result is solved                               # not solved again
+    assert np.allclose(sent.column("x_com")[0] - asked.column("x_com")[0], 0.012, atol=1e-12)
+    assert sent.parameters["x_start"] == pytest.approx(0.002 + robot.com_in_pelvis[0], abs=1e-12)
+    for name in ("H_pitch", "L", "phi_pitch"):
+        assert np.array_equal(sent.column(name)[0], asked.column(name)[0])
+    with pytest.raises(P.InfeasibleRequest, match="not_standing"):
+        sess.reanchored(_pelvis(robot, x=0.002, ground=ground, v=(0.5, 0.0, 0.0)))
+    with pytest.raises(RuntimeError):
+        P.FlipSession("backflip", **FLIP).reanchored(_pelvis(robot, ground=ground))
+
+
 def test_a_turned_robot_gets_the_plans_of_one_facing_x():
     """The plans' x is along the heading the robot stands with at the request (FlipSession.heading):
     a robot turned 0.3 rad about the vertical through its pelvis, whose touch-down state is the

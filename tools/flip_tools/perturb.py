@@ -250,10 +250,12 @@ def failed_result(sample: Sample, error: str | None, mode: str = "offline") -> d
             "mode": mode, "jump_start_s": None}
 
 
-def run_sample(sample: Sample) -> dict:
+def run_sample(sample: Sample, x_start: float | None = None, heading=None) -> dict:
     """Run a sample offline; its result: the record's fields, ``outcome`` (one of OUTCOMES),
     ``limit`` (a rejected request's), ``error``, net rotation (deg), fall and touch-down times (s),
-    peak flywheel speed (rpm), simulated and wall seconds, the jump's start (s: the ``start`` knob)."""
+    peak flywheel speed (rpm), simulated and wall seconds, the jump's start (s: the ``start`` knob).
+    ``x_start``, ``heading``: where the jump plan starts (a graph run's summary.json ``planner.x_start_m``
+    and ``planner.heading``; flip_tools.offline.run), None: measured as planner_node measures it."""
     from fslip_planner.feasibility import InfeasibleRequest
 
     from . import offline
@@ -264,7 +266,8 @@ def run_sample(sample: Sample) -> dict:
     try:
         sim, ctl, plant = build(sample)
         r = offline.run(flip.kind, seconds=sample.knob("seconds"), start=sample.knob("start"), sim=sim,
-                        controller=ctl, every=10, plant=plant, apex_height=flip.apex,
+                        controller=ctl, every=10, plant=plant, x_start=x_start, heading=heading,
+                        apex_height=flip.apex,
                         forward_distance=flip.distance, platform_height=flip.platform,
                         **robot_request())
     except InfeasibleRequest as e:

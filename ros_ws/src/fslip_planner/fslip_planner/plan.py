@@ -295,6 +295,17 @@ class FlipSession:
                        heading_pivot_y=self.heading.pivot[1])
         return ground_reference(JUMPING, r.solution, self.x_start, self.robot.L0, r.figures, par)
 
+    def reanchored(self, state: PelvisState) -> Reference:
+        """The solved jump's JUMPING reference anchored at a newer measured ``state`` (refused unless it
+        stands, as :meth:`jumping_reference`).  The jump NLP's solution does not depend on where the
+        robot stands, only its anchor (``x_start``, ``heading``) does: planner_node re-reads the robot
+        once the solve is done, so that a plan starts from where the robot is when it goes out, not
+        where it was when asked (a robot still settling moves ~1 cm in between)."""
+        if self.result is None:
+            raise RuntimeError("reanchored: no jump solved yet (jumping_reference first)")
+        self.x_start, self.heading = None, None
+        return self.jumping_reference(state)
+
     def predict_landing(self, state: MeasuredState, stop=None, interrupt=None) -> Optional[float]:
         """Solve the landing NLP for the touch-downs the measured lift-off ``state`` predicts
         (:func:`landing.predicted_touchdowns` around the mirrored lean), in order, each warm from the

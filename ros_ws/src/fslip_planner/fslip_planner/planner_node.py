@@ -1,9 +1,9 @@
 """planner_node: the FSLIP planner as a ROS 2 node (thin adapter around ``fslip_planner.plan``).
 
 - ``/request_flip`` (flip_msgs/RequestFlip): validate → read the measured pelvis state (the newest
-  ``/odom``) → refuse unless the robot stands → solve the jumping optimisation from where it stands →
-  publish the JUMPING reference; an impossible or malformed request gets ``accepted=false`` and a
-  reason.
+  ``/odom``) → refuse unless the robot stands → solve the jumping optimisation → read the robot again
+  and anchor the plan where it stands then (``FlipSession.reanchored``) → publish the JUMPING
+  reference; an impossible or malformed request gets ``accepted=false`` and a reason.
 - ``/contact_events`` LIFT_OFF → flight plan (momentum transmission) from the measured state;
   TOUCH_DOWN → landing optimisation from the measured post-impact state.
 Every reference goes out on ``/fslip/reference`` with its solve time, and then, for a viewer, as
@@ -289,6 +289,10 @@ class PlannerNode:
                 raise InfeasibleRequest(f'no_state: no /odom from the simulator within {STATE_TIMEOUT_S:g} s: '
                                         'the state of the robot is unknown', 'no_state')
             ref = session.jumping_reference(state)
+            # the solve took a while and the robot may have moved: the plan starts where it stands now
+            newer = self._measured_pelvis()
+            if newer is not None:
+                ref, state = session.reanchored(newer), newer
         except (InfeasibleRequest, ValueError) as e:
             res.reason = str(e)
             self.node.get_logger().warn(f'request refused: {e}')
