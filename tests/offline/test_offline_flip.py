@@ -106,8 +106,9 @@ def test_backflip_legs_preplaced_touch_down_where_the_plan_puts_the_feet(backfli
     """Placed after T1 only, the backflip's legs swing while the flywheel stops the body at its torque
     limit and land ahead of the plan's placement (COM behind the feet, where the plan puts it ahead).
     The landing plan takes the momentum out through the feet' centre of pressure (landing.LANDING_COST),
-    so the landing spins the flywheel less than 5 % above its flight peak (~30 % above while the plan
-    took it out with the flywheel torque alone).  Turned to their touch-down angle on the pelvis during
+    so the landing spins the flywheel less than 10 % above its flight peak (7 % from this start, where
+    the flight no longer brakes past its plan's end; ~30 % above while the plan took it out with the
+    flywheel torque alone).  Turned to their touch-down angle on the pelvis during
     the tuck's extension (``flight_legs_preplaced``) they touch down with the COM ahead of the feet."""
     if preplaced:
         sim, _ = robot()
@@ -121,7 +122,7 @@ def test_backflip_legs_preplaced_touch_down_where_the_plan_puts_the_feet(backfli
     lean, fw_flight, fw_landing = _touch_down_lean_and_flywheel_peaks(r)
     mirrored = -r["session"].result.lift_off["x"]        # the plan's COM - foot at the touch-down
     assert mirrored > 0.0
-    assert fw_landing < 1.05 * fw_flight, fw_landing / fw_flight
+    assert fw_landing < 1.10 * fw_flight, fw_landing / fw_flight
     if preplaced:
         assert lean == pytest.approx(mirrored, abs=0.06)
     else:

@@ -198,3 +198,41 @@ def test_preplaced_legs_turn_to_their_touch_down_angle_on_the_pelvis_between_t1_
         # and that placement is the touch-down's leg angle on the pelvis: beta + theta = -beta_liftoff + theta_T
         th_T = ref.sample(ref.duration)["phi_pitch"][0]
         assert _wrapped(after[ka].value[0] + ctl.pitch - (-ref.parameters["beta_liftoff"] + th_T)) == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("pitch_output", [True, False], ids=["pitch", "momentum"])
+def test_past_the_plans_end_the_flight_holds_its_last_pitch_at_rest(pitch_output):
+    """A touch-down later than planned (an in-place backflip's comes ~10 ms after its flight plan's end):
+    past the FLIGHT reference's end the pelvis pitch is asked to stay at the plan's last value at rest.
+    The last sample's acceleration is the plan's braking to rest; held on, it turned the pelvis back
+    (+1.16 rad/s at a backflip's touch-down, against the turn) and spun the flywheel past what the
+    turn needed, which the landing then had to take out."""
+    sim = Simulator()
+    w0 = launch(sim, -1, T_FLIGHT, 0.4)
+    ref = flight_reference(-1, w0, T_FLIGHT)
+    ctl = Controller(export_mjcf(), flight_lead=0.0, flight_pitch_output=pitch_output)
+    sc = StateConverter(ctl.dyn)
+    ctl._enter(Domain.FLIGHT, 0.0)
+    ctl.set_reference(ref)
+    q, v = sc.from_simulator(sim)
+    ctl.dyn.update(q, v)
+    ctl._update_pitch()
+    fl = ctl.flight
+    seen = {}
+    orig = fl._momentum_transmission
+    fl._momentum_transmission = lambda smp, pitch: seen.setdefault("smp", smp) and orig(smp, pitch)
+    th, dth, ddth = (c[-1, 0] for c in (ref.value, ref.d_value, ref.dd_value))
+    assert abs(ddth) > 1.0 and abs(dth) < 1e-9                  # the plan ends at rest, still braking
+
+    def pitch_desired(t):
+        seen.clear()
+        _, outs, des = ctl._task(t)
+        if pitch_output:
+            d = des[outs.index(fl.o_pitch)]
+            return d.value[0], d.d_value[0], d.dd_value[0]
+        return seen["smp"]["phi_pitch"]
+
+    v_end, d_end, dd_end = pitch_desired(ref.duration - 1e-9)
+    assert dd_end == pytest.approx(ddth, rel=1e-6)
+    for t in (ref.duration + 1e-3, ref.duration + 0.05):
+        assert pitch_desired(t) == (pytest.approx(th, abs=1e-12), 0.0, 0.0)

@@ -61,6 +61,11 @@ class Flight:
                 beta=[o.evaluate(dyn)[0] for o in self.o_beta])
         f = self.state
         smp = ref.sample(tau) if ref is not None else {}
+        if ref is not None and tau > ref.duration:
+            # a touch-down later than planned: past its end the plan holds its last value at rest.  Its
+            # last sample's acceleration is the pitch trapezoid's braking, which held on would spin the
+            # flywheel up and turn the pelvis back until the touch-down
+            smp = {name: (v, 0.0, 0.0) for name, (v, _dv, _ddv) in smp.items()}
         z = np.zeros(1)
 
         def d(name, default):
