@@ -486,3 +486,45 @@ def test_a_landing_stops_the_pelvis_yaw_where_its_touch_down_rate_takes_it(stop)
     ctl.compute(qq, vv, sim.time + 2.0)
     assert ctl.ground.targets(sim.time + 2.0 + ctl.cfg.blend_time + 0.1, False)["pelvis"].value[2] == \
         pytest.approx(feet_yaw, abs=1e-9)
+
+
+def test_the_tracked_landing_scales_its_momentum_to_what_the_impact_left():
+    """Landing.scale_to_impact: the landing plan is solved from the touch-down's pre-impact state; the
+    impact then takes momentum out within a few ms (a backflip: -38.0 -> -35.4 kg m^2/s), which the plan,
+    tracked as solved, put back.  ``landing_impact_time`` after the touch-down the plan's momentum is
+    scaled by measured / planned (at most 1) and stays so; a rebound's new plan is scaled at its own
+    impact; more momentum than planned, or a sign change, leaves the plan as it is."""
+    from tsc_controller.config import ControllerConfig
+    from tsc_controller.landing import Landing
+    from tsc_controller.tsc import Desired
+    H_now = {"H": -35.4}
+
+    class Dyn:                                 # the centroidal pitch momentum is Ag[4] @ v
+        v = np.array([1.0])
+
+        @property
+        def Ag(self):
+            return np.array([[0.0]] * 4 + [[H_now["H"]]])
+    landing = Landing.__new__(Landing)
+    landing.cfg, landing.ground = ControllerConfig(), SimpleNamespace(dyn=Dyn())
+    landing.impact = None
+
+    def desired(ref, tau, H_plan=-38.0, rate=20.0):
+        d = Desired(np.array([H_plan]), np.array([rate]), np.array([0.0]))
+        landing.scale_to_impact(d, ref, tau)
+        return float(d.value[0]), float(d.d_value[0])
+
+    plan, rebound = object(), object()
+    assert desired(plan, 0.005) == (-38.0, 20.0)                     # during the impact: as solved
+    k = 35.4 / 38.0
+    assert desired(plan, 0.010) == pytest.approx((-38.0 * k, 20.0 * k))
+    H_now["H"] = -30.0                                             # measured once: later ticks keep k
+    assert desired(plan, 0.2, H_plan=-20.0, rate=30.0) == pytest.approx((-20.0 * k, 30.0 * k))
+    H_now["H"] = -40.0                                             # a new plan (a rebound's re-solve)
+    assert desired(rebound, 0.0) == (-38.0, 20.0)
+    assert desired(rebound, 0.02) == (-38.0, 20.0)                   # more than planned: as solved
+    H_now["H"] = 5.0
+    assert desired(object(), 0.02) == (-38.0, 20.0)                 # the other sign: as solved
+    landing.cfg = ControllerConfig(landing_impact_time=0.0)
+    H_now["H"] = -35.4
+    assert desired(object(), 0.02) == (-38.0, 20.0)                 # off

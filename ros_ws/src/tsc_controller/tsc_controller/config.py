@@ -181,6 +181,11 @@ class ControllerConfig:
     # next touch-down replaces it (paper §III-C: each touch-down is re-solved from its measured state),
     # or (False) hands the rest of the landing to the own landing (docs/tuning.md)
     rebound_keeps_landing_plan: bool = True
+    # s after a touch-down under the tracked plan (the impact's span): the plan's momentum profile is then
+    # scaled to the momentum measured, by at most 1 (Landing.scale_to_impact).  The plan is solved from the
+    # pre-impact state; tracked as solved it put back what the impact took out (a backflip: -35.4 ->
+    # -37.5 kg m^2/s within 40 ms, into the flywheel).  0: off (docs/tuning.md)
+    landing_impact_time: float = 0.01
     # LANDING after a hop (no turn, nothing to stop): the same choice.  Off: the hop's re-solve, planned
     # from the pre-impact sink rate, unloads the feet ~80 ms after the touch-down; with Cassie's
     # published motor curve the paper's robot then fell in 1 of 3 graph runs (own landing: no rebound,

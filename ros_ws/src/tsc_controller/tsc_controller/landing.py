@@ -26,6 +26,7 @@ class Landing:
 
     def enter(self):
         self.ground.reanchor()            # re-anchor the standing targets at the current state
+        self.impact = None                # [reference, k]: the scale of its momentum, once measured
 
     def task(self, t, ref, t_enter):
         tau = 0.0 if ref is None else max(0.0, t - max(t_enter, ref.start_time))
@@ -33,6 +34,7 @@ class Landing:
         des = g.targets(t, True)
         if ref is not None:
             g.follow(des, ref.sample(tau))
+            self.scale_to_impact(des["H_pitch"], ref, tau)
             outs = self.plan_outputs
         else:
             cfg = self.cfg
@@ -40,6 +42,29 @@ class Landing:
                                             t - g.stand["t0"])[0])
             outs = self.own_outputs
         return outs, [des[o.name] for o in outs]
+
+    def scale_to_impact(self, d, ref, tau):
+        """Scale the plan's momentum (H_FSLIP of Y1, eq. (Y1)) by k = H / H_FSLIP measured
+        ``landing_impact_time`` after its touch-down, 0 <= k <= 1 (1 where the signs differ or the plan
+        holds under 1 kg m^2/s): the plan is solved from the touch-down's pre-impact state, and the
+        impact takes momentum out within a few ms; tracked as solved, that momentum went back in."""
+        t_i = self.cfg.landing_impact_time
+        if t_i <= 0.0:
+            return
+        if getattr(self, "impact", None) is None or self.impact[0] is not ref:
+            self.impact = [ref, None]             # a rebound's re-solve is scaled at its own impact
+        k = self.impact[1]
+        if k is None:
+            if tau < t_i:
+                return
+            dyn = self.ground.dyn
+            H, H_plan = float(dyn.Ag[4] @ dyn.v), float(d.value[0])
+            k = min(max(H / H_plan, 0.0), 1.0) if abs(H_plan) > 1.0 and H * H_plan > 0.0 else 1.0
+            self.impact[1] = k
+        if k != 1.0:
+            d.value[0] *= k
+            d.d_value[0] *= k
+            d.dd_value[0] *= k
 
     def done(self, t, ref):
         """The landing is over: its reference has ended or, without one, the own landing
