@@ -5,7 +5,8 @@
   and anchor the plan where it stands then (``FlipSession.reanchored``) → publish the JUMPING
   reference; an impossible or malformed request gets ``accepted=false`` and a reason.
 - ``/contact_events`` LIFT_OFF → flight plan (momentum transmission) from the measured state;
-  TOUCH_DOWN → landing optimisation from the measured post-impact state.
+  TOUCH_DOWN → landing optimisation from the measured touch-down state (before the impact: the
+  controller scales the plan's momentum to what the impact leaves, ``landing_impact_time``).
 Every reference goes out on ``/fslip/reference`` with its solve time, and then, for a viewer, as
 geometry in the world frame (``plan_geometry``): its COM path on ``/fslip/com_path`` (nav_msgs/Path)
 and the foot targets of the flip so far on ``/fslip/targets`` (visualization_msgs/MarkerArray: a
