@@ -155,6 +155,18 @@ def _wrapped(a):
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+def _in_flight(sim, ref, **cfg):
+    """A controller in FLIGHT from t = 0 under ``ref`` (no lead), its model at the simulator's state,
+    as after a LIFT_OFF event; ``cfg``: ControllerConfig overrides."""
+    ctl = Controller(export_mjcf(), flight_lead=0.0, **cfg)
+    ctl._enter(Domain.FLIGHT, 0.0)
+    ctl.set_reference(ref)
+    q, v = StateConverter(ctl.dyn).from_simulator(sim)
+    ctl.dyn.update(q, v)
+    ctl._update_pitch()
+    return ctl
+
+
 @pytest.mark.parametrize("sign", [-1, 1])
 def test_preplaced_legs_turn_to_their_touch_down_angle_on_the_pelvis_between_t1_half_and_t1(sign):
     """``flight_legs_preplaced``: the hip pitches leave the joint hold at T1/2 and each leg's angle
@@ -166,13 +178,7 @@ def test_preplaced_legs_turn_to_their_touch_down_angle_on_the_pelvis_between_t1_
     ref = flight_reference(sign, w0, T_FLIGHT)
     T1 = ref.parameters["T1"]
     for on in (True, False):
-        ctl = Controller(export_mjcf(), flight_legs_preplaced=on, flight_lead=0.0)
-        sc = StateConverter(ctl.dyn)
-        ctl._enter(Domain.FLIGHT, 0.0)
-        ctl.set_reference(ref)
-        q, v = sc.from_simulator(sim)
-        ctl.dyn.update(q, v)
-        ctl._update_pitch()
+        ctl = _in_flight(sim, ref, flight_legs_preplaced=on)
         fl = ctl.flight
 
         def task(t):
@@ -210,13 +216,7 @@ def test_past_the_plans_end_the_flight_holds_its_last_pitch_at_rest(pitch_output
     sim = Simulator()
     w0 = launch(sim, -1, T_FLIGHT, 0.4)
     ref = flight_reference(-1, w0, T_FLIGHT)
-    ctl = Controller(export_mjcf(), flight_lead=0.0, flight_pitch_output=pitch_output)
-    sc = StateConverter(ctl.dyn)
-    ctl._enter(Domain.FLIGHT, 0.0)
-    ctl.set_reference(ref)
-    q, v = sc.from_simulator(sim)
-    ctl.dyn.update(q, v)
-    ctl._update_pitch()
+    ctl = _in_flight(sim, ref, flight_pitch_output=pitch_output)
     fl = ctl.flight
     seen = {}
     orig = fl._momentum_transmission

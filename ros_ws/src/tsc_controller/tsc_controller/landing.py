@@ -23,10 +23,11 @@ class Landing:
         self.o_H = _mk(O.CentroidalPitchMomentum, "H_pitch", cfg.gains)      # the own landing's; weight set per tick
         self.own_outputs = [self.o_H, ground.o_L, ground.o_com, ground.o_pel]
         self.plan_outputs = _ground_outputs({**cfg.gains, **cfg.landing_gains})
+        self.impact = None                # [reference, k]: the scale of its momentum, once measured
 
     def enter(self):
         self.ground.reanchor()            # re-anchor the standing targets at the current state
-        self.impact = None                # [reference, k]: the scale of its momentum, once measured
+        self.impact = None
 
     def task(self, t, ref, t_enter):
         tau = 0.0 if ref is None else max(0.0, t - max(t_enter, ref.start_time))
@@ -51,7 +52,7 @@ class Landing:
         t_i = self.cfg.landing_impact_time
         if t_i <= 0.0:
             return
-        if getattr(self, "impact", None) is None or self.impact[0] is not ref:
+        if self.impact is None or self.impact[0] is not ref:
             self.impact = [ref, None]             # a rebound's re-solve is scaled at its own impact
         k = self.impact[1]
         if k is None:
