@@ -19,7 +19,7 @@ class StateConverter:
 
     With the Dynamics' native backend the conversion runs compiled (``_native.StateMap``: the same
     Pinocchio exp3 and Eigen quaternion as ``pin.exp3`` / ``pin.Quaternion``); ``backend="python"``
-    is the reference (tests/unit/test_tsc_domains.py compares them)."""
+    is the reference (tests/unit/test_tsc_state.py compares them)."""
 
     def __init__(self, dyn, backend: str | None = None):
         self.dyn = dyn
