@@ -16,7 +16,9 @@ arrives while the robot stands), so the count is the offline estimate of a graph
 weighs one run many times; ``--noise 1e-4`` (sensor noise, seeded per start time) makes the runs
 independent.  Each row also gives
 the planner's landing re-solve at touch-down (wall ms, IPOPT iterations, which attempt answered) and
-whether the controller's own landing replaced the tracked plan (a rebound, or no plan).
+whether the controller's own landing replaced the tracked plan (a rebound, or no plan); the summary
+gives the stance the landed runs end in (one foot ahead of the other, the feet turned apart: what a
+next flip in a row jumps from).
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 from flip_tools.cli.options import flight_check_opt, knee_model_opt
 from flip_tools.flip_request import request_distance
 from flip_tools.perturb import add_noise_option
-from flip_tools.offline import EXPECTED_TURN, at_rest, lift_off_touch_down, outcome  # noqa: F401
+from flip_tools.offline import EXPECTED_TURN, at_rest, feet_apart, lift_off_touch_down, outcome  # noqa: F401
 from flip_tools.summary import LANDING_CRITERIA, RPM_PER_RADPS  # noqa: F401
 from flip_tools.tracking import peak_abs
 
@@ -94,6 +96,8 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
         w = np.asarray(r["fw"]) * RPM_PER_RADPS
         out["fw_peak_rpm"] = (peak_abs(r["t"], w, lo, td), peak_abs(r["t"], w, td, float(r["t"][-1])))
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
+    # the stance the run ends in (the next flip's, in a row): left foot ahead of the right, feet yaw apart
+    out["feet_apart"] = feet_apart(sim)
     # the verdict on the true pitch where the controller reads a noisy one (as flip sweep's)
     out["landed"] = outcome(r, kind, pitch_end=None if plant is None else plant.pitch) == "landed"
     return out
@@ -193,7 +197,7 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--states", action="store_true",
                     help="also the lift-off (measured / planned) and touch-down states: COM x ahead of the "
-                         "feet, COM velocity x and z, pitch momentum")
+                         "feet, COM velocity x and z, pitch momentum; and the stance the run ends in")
     a = ap.parse_args(numbers_attached(sys.argv[1:], {"--x-start": 1, "--heading": 3}))
     if a.platform and a.ground_offset:
         ap.error("choose --platform or --ground-offset, not both")
@@ -235,15 +239,15 @@ def main() -> int:
     if a.states:
         print()
         print("| flip | start s | lift-off COM ahead of feet m (plan) | ẋ m/s (plan) | ż m/s (plan) | H kg m²/s (plan) "
-              "| touch-down COM ahead of feet m | ẋ m/s | ż m/s |")
-        print("|---|---|---|---|---|---|---|---|---|")
+              "| touch-down COM ahead of feet m | ẋ m/s | ż m/s | at the end: left foot ahead of right mm | feet yaw apart deg |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             lo, pl, td = (r["states"][k] or {} for k in ("lift_off", "planned_lift_off", "touch_down"))
             g = lambda d, k, nd=3: f(d.get(k), nd)  # noqa: E731
             print(f"| {r['kind']} | {start_cell(r['start'])} | {g(lo, 'com_ahead_of_feet')} ({g(pl, 'com_ahead_of_feet')}) | "
                   f"{g(lo, 'xdot', 2)} ({g(pl, 'xdot', 2)}) | {g(lo, 'zdot', 2)} ({g(pl, 'zdot', 2)}) | "
                   f"{g(lo, 'H', 1)} ({g(pl, 'H', 1)}) | {g(td, 'com_ahead_of_feet')} | {g(td, 'xdot', 2)} | "
-                  f"{g(td, 'zdot', 2)} |")
+                  f"{g(td, 'zdot', 2)} | {1e3 * r['feet_apart'][0]:.1f} | {math.degrees(r['feet_apart'][1]):.2f} |")
     for k in a.kinds:
         n = [r["landed"] for r in rows if r["kind"] == k]
         print(f"{k}: landed from {sum(n)} of {len(n)} start times")
@@ -254,6 +258,11 @@ def main() -> int:
               f"IPOPT iterations median {statistics.median(its):.0f}, max {max(its)}; answered by a fallback "
               f"(cold / momentum free / blend) in {sum(v['fallback'] > 0 for v in first)} of {len(first)}")
     print(f"flywheel faster in the landing than in the flight in {faster_in_landing(rows)} of {len(rows)} runs")
+    ends = [r["feet_apart"] for r in rows if r["landed"]]
+    if ends:
+        print(f"the stance the landed runs end in (the next flip's): one foot ahead of the other by up to "
+              f"{1e3 * max(abs(e[0]) for e in ends):.1f} mm, the feet turned apart by up to "
+              f"{max(abs(math.degrees(e[1])) for e in ends):.2f} deg")
     reb = [r for r in rows if r["rebounds"]]
     later = [v for r in rows for v in r["resolves"][1:]]
     print(f"rebounds under the tracked landing plan in {len(reb)} of {len(rows)} runs"

@@ -264,6 +264,9 @@ def test_bench_landings_reports_a_flip(tmp_path, args, kind, flight_min, turn):
         assert lo_ahead < 0.0 and plan_ahead < 0.0
         assert float(cells[4].split()[0]) > 2.0 and float(cells[5].split()[0]) < -30.0
         assert float(cells[8]) < -2.0
+        # and the stance at the run's end (flip_tools.offline.feet_apart): the feet on the ground, not yet
+        # settled at 2.45 s, but within a foot's length of each other and turned apart by a few degrees at most
+        assert abs(float(cells[9])) < 100.0 and abs(float(cells[10])) < 20.0
 
 
 def test_bench_landings_says_why_the_planner_refuses_a_request():

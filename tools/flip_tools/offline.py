@@ -213,6 +213,24 @@ TURN_TOLERANCE = 0.3
 MIN_FINAL_HEIGHT = 0.8
 
 
+def feet_apart(sim: Simulator) -> tuple[float, float]:
+    """The stance the simulator's robot stands in: (how far the left foot's centre is ahead of the
+    right's along the feet's mean heading, m; left foot's yaw less the right's, rad), from the
+    MuJoCo toe and heel sites.  A landing that leaves one foot ahead or turned is the stance the next
+    flip jumps from (a backflip from a stance with one foot 4 mm ahead rolled over in its landing:
+    tsc_controller's ``leg_symmetry`` gain)."""
+    m, d = sim.model, sim.data
+    feet = {}
+    for side in ("left", "right"):
+        toe, heel = (d.site_xpos[m.site(f"{side}_foot_{k}").id][:2] for k in ("toe", "heel"))
+        feet[side] = (0.5 * (toe + heel), math.atan2(toe[1] - heel[1], toe[0] - heel[0]))
+    (cl, yl), (cr, yr) = feet["left"], feet["right"]
+    h = np.array([math.cos(yl) + math.cos(yr), math.sin(yl) + math.sin(yr)])
+    h /= max(float(np.linalg.norm(h)), 1e-12)
+    yaw = (yl - yr + math.pi) % (2.0 * math.pi) - math.pi
+    return float((cl - cr) @ h), yaw
+
+
 def lift_off_touch_down(events) -> tuple:
     """(time of the first lift-off, time of the first touch-down after it) of a run's events; None
     where there is none."""
