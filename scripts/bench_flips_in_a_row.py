@@ -2,13 +2,15 @@
 """Flips in a row without ROS: from each start time, one simulator and one controller do N flips of a
 kind, each asked 0.5 s after the previous run ends (``--seconds`` of sim time per flip), the pitch turns
 carried as planner_node carries them (flip_tools.offline.run(turns=...)).  Prints each chain's outcomes
-and, per flip number, how many landed (a chain stops at its first flip that does not land).
+(a landed flip with the stance it left: one foot ahead of the other, the feet's yaw apart) and, per flip
+number, how many landed (a chain stops at its first flip that does not land).
 
   .venv/bin/python scripts/bench_flips_in_a_row.py --kinds backflip frontflip --flips 3
 """
 from __future__ import annotations
 
 import argparse
+import math
 from concurrent.futures import ProcessPoolExecutor
 
 #: start times of the first flip (s): the robot has stood that long
@@ -19,7 +21,9 @@ GAP_S = 0.5
 
 def chain(kind: str, start: float, flips: int, seconds: float, scale: float, torque: float, apex: float,
           controller: str = "", noise: float = 0.0) -> list[str]:
-    """The outcomes (flip_tools.offline.outcome) of up to ``flips`` flips in a row from ``start``."""
+    """The outcomes (flip_tools.offline.outcome) of up to ``flips`` flips in a row from ``start``; a
+    landed one with the stance it left (flip_tools.offline.feet_apart: one foot ahead of the other, mm;
+    the feet's yaw apart, deg), the next flip's."""
     from cassie_flip_sim.simulator import Simulator
     from cassie_model.model import export_mjcf
     from flip_tools import offline as of
@@ -48,6 +52,8 @@ def chain(kind: str, start: float, flips: int, seconds: float, scale: float, tor
         out.append(of.outcome(r, kind, pitch_end=own))
         if out[-1] != "landed":
             break
+        ahead, yaw = of.feet_apart(sim)
+        out[-1] += f" ({1e3 * ahead:+.1f} mm, {math.degrees(yaw):+.1f} deg)"
         t = sim.time + GAP_S
     return out
 
@@ -81,7 +87,7 @@ def main() -> int:
         print(f"| {kind} | {start:.2f} | " + " | ".join(cells) + " |")
     for kind in a.kinds:
         rows = [res for (k, _), res in zip(jobs, results) if k == kind]
-        tally = [f"flip {i + 1}: {sum(1 for r in rows if len(r) > i and r[i] == 'landed')} of "
+        tally = [f"flip {i + 1}: {sum(1 for r in rows if len(r) > i and r[i].startswith('landed'))} of "
                  f"{sum(1 for r in rows if len(r) > i)}" for i in range(a.flips)]
         print(f"{kind}: " + ", ".join(tally))
     return 0
