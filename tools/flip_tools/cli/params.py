@@ -75,6 +75,8 @@ def tsc_params(args) -> dict:
     p = {k: v for k, v in robot_params(args).items() if k != "flywheel"}
     if getattr(args, "mode", "lockstep") == "lockstep":
         p["min_subscribers"] = 1
+    else:                   # realtime: the simulator steps on without the planner's reference, so does the node
+        p["hold_for_reference"] = False
     text = getattr(args, "controller", None)
     if text:
         from tsc_controller.config import config_overrides

@@ -4,7 +4,10 @@ Per simulator step k it takes ``/joint_states`` and ``/odom`` stamped k·dt, com
 torques and publishes one ``/motor_command`` with ``step == k``. A state seen again (the simulator
 re-sends on a timeout) gets the same command again: the node is idempotent per step. References
 (``/fslip/reference``) and contact events (``/contact_events``) switch the domain; with neither,
-the controller holds the standing pose.
+the controller holds the standing pose. In lockstep, a contact event while a flip plan is in force
+holds the simulator until it has seen the planner's reference for the domain entered; the node holds
+its answer to that step the same way, since the reference may reach it after the state does (two
+topics, no order between them): the step's command then never depends on which came first.
 
 The per-step messages stay serialized (``flip_transport.lockstep``): the state is read from
 numpy views of the received bytes, the command patched into a preallocated one. The simulator
@@ -37,6 +40,9 @@ from .dynamics import MOTOR_NAMES
 from .reference import SampledReference
 
 DT_NS = 500_000
+#: longest wall time the node holds a contact event's step for the planner's reference (the
+#: simulator's PLANNER_HOLD_TIMEOUT_S)
+REFERENCE_HOLD_TIMEOUT_S = 30.0
 #: topics that wake the node: all but /odom, which comes before /joint_states
 WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description_mjcf')
 #: the topics besides the state's (taken with rclpy also when rcl's C API waits: _rcl_io.StateWait)
@@ -74,6 +80,12 @@ class TscNode:
         # (a recorder matched 0.12-0.6 s in and missed the first 245-1,190 commands)
         self.min_subscribers = int(self.node.declare_parameter('min_subscribers', 0).value)
         self.matched = self.min_subscribers <= 0
+        # lockstep: hold the answer to a contact event's step until the planner's reference for the
+        # domain it enters has come (module doc); false in realtime mode, where the simulator does not wait
+        self.hold_for_reference = bool(self.node.declare_parameter('hold_for_reference', True).value)
+        self.plan_in_force = None   # (plan id, domain, start ns) of the newest reference
+        self.awaited = None         # (domain, event ns, wall s): the reference a contact event waits for
+        self.state_held = False     # a state is waiting for that reference
         self.state_wait = None
         self.pending = []           # references that came before the robot description
         self.cmd = RawMessage(MotorCommand(name=list(MOTOR_NAMES), effort=[0.0] * len(MOTOR_NAMES)),
@@ -91,8 +103,34 @@ class TscNode:
             self.node.get_logger().error(f'malformed /fslip/reference ignored: {e}')
             return
         self.controller.set_reference(ref)
+        self.plan_in_force = (msg.plan_id, msg.domain, stamp_to_ns(msg.start_time))
         self.node.get_logger().info(f'reference: plan {msg.plan_id} domain {msg.domain}, '
                                     f'{len(msg.t)} samples from t={ref.start_time:.3f} s')
+
+    def _await_reference(self, msg):
+        """A LIFT_OFF / TOUCH_DOWN while a flip plan is in force: its step waits for the planner's
+        reference of the domain entered (sim_node's hold at the same event)."""
+        plan = self.plan_in_force
+        if (self.hold_for_reference and msg.event in (ContactEvent.LIFT_OFF, ContactEvent.TOUCH_DOWN)
+                and plan is not None and plan[1] != FlipReference.DOMAIN_STANDING):
+            self.awaited = (msg.domain, stamp_to_ns(msg.header.stamp), time.monotonic())
+
+    def _reference_missing(self, k_ns) -> bool:
+        """Is step ``k_ns`` a contact event's (or later) whose reference has not come yet?  Past
+        REFERENCE_HOLD_TIMEOUT_S the step is answered without it, as the simulator steps on."""
+        if self.awaited is None or k_ns < self.awaited[1]:
+            return False
+        domain, event_ns, t0 = self.awaited
+        plan = self.plan_in_force
+        if plan is not None and plan[1] == domain and plan[2] >= event_ns - DT_NS:
+            self.awaited = None
+            return False
+        if time.monotonic() - t0 > REFERENCE_HOLD_TIMEOUT_S:
+            self.node.get_logger().warn(f'no reference for domain {domain} within {REFERENCE_HOLD_TIMEOUT_S:g} s '
+                                        f'of the contact event at t={event_ns * 1e-9:.4f} s: answering without it')
+            self.awaited = None
+            return False
+        return True
 
     def _state(self, js_buf, odom_buf):
         """(q, v) from the serialized /joint_states and /odom: compiled from the bytes while the
@@ -154,7 +192,9 @@ class TscNode:
         if k_js == self.answered_ns:
             self._publish_command(k_js)          # the simulator asked again: same answer
         elif k_js > self.answered_ns or k_js == 0:
-            self._answer(k_js, js_buf, odom_buf)
+            self.state_held = self._reference_missing(k_js)
+            if not self.state_held:
+                self._answer(k_js, js_buf, odom_buf)
 
     def _on_message(self, topic, msg):
         """A message of one of OTHER_TOPICS."""
@@ -177,6 +217,7 @@ class TscNode:
                 self._on_reference(msg)
         elif topic == '/contact_events' and self.controller is not None:
             self.controller.on_contact_event(msg.event, msg.domain, stamp_to_ns(msg.header.stamp) * 1e-9)
+            self._await_reference(msg)
 
     def run(self):
         if self.rcl_io:
@@ -215,8 +256,8 @@ class TscNode:
                 for topic, sub in zip(OTHER_TOPICS, others):
                     while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                         self._on_message(topic, got[0])
-            if status & sw.STATE and self.controller is not None:
-                self._on_state(sw.js, sw.odom)
+            if (status & sw.STATE or self.state_held) and self.controller is not None:
+                self._on_state(sw.js, sw.odom)   # a new state, or the held one once its reference came
 
     def close_io(self):
         if self.state_wait is not None:
