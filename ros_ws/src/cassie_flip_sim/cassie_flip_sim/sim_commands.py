@@ -9,10 +9,9 @@ import struct
 import time
 
 from flip_msgs.msg import FlipReference
-from flip_transport.lockstep import stamp_to_ns
+from flip_transport.lockstep import (PLANNER_HOLD_TIMEOUT_S, holds_for_reference,  # noqa: F401
+                                     reference_answers, stamp_to_ns)
 
-#: longest wall time the simulator holds at a contact event for the planner's reference
-PLANNER_HOLD_TIMEOUT_S = 30.0
 #: realtime mode: steps without a fresh command before the motors go to damping (20 ms)
 WATCHDOG_STEPS = 40
 #: wall time without a command before the state is sent again and the silence is reported
@@ -66,13 +65,12 @@ class SimCommands:
 
     def _hold_for_reference(self, k, domain):
         """Lockstep: wait until the planner's reference for ``domain`` (start ≥ now) is seen."""
-        if self.plan_in_force is None or self.plan_in_force[1] == FlipReference.DOMAIN_STANDING:
+        if not holds_for_reference(self.plan_in_force):
             return
         t0 = time.monotonic()
         now_ns = k * self.dt_ns
         while time.monotonic() - t0 < PLANNER_HOLD_TIMEOUT_S:
-            pid, dom, start = self.plan_in_force
-            if dom == domain and start >= now_ns - self.dt_ns:
+            if reference_answers(self.plan_in_force, domain, now_ns, self.dt_ns):
                 break
             self._handle_incoming(self.subs.wait(0.1), -1)
             if self.subs.interrupted or not self._running():

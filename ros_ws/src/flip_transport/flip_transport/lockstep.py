@@ -205,6 +205,23 @@ def wait_for_subscribers(publisher, count=1, timeout_s=30.0, poll_s=0.01):
     return True
 
 
+#: longest wall time a node holds a contact event's step for the planner's reference (sim_node, tsc_node)
+PLANNER_HOLD_TIMEOUT_S = 30.0
+
+
+def holds_for_reference(plan_in_force) -> bool:
+    """In lockstep a LIFT_OFF / TOUCH_DOWN holds its step for the planner's reference while a flip plan
+    is in force: the newest reference, ``(plan id, domain, start ns)``, is there and not STANDING's."""
+    from flip_msgs.msg import FlipReference
+    return plan_in_force is not None and plan_in_force[1] != FlipReference.DOMAIN_STANDING
+
+
+def reference_answers(plan_in_force, domain, event_ns, dt_ns) -> bool:
+    """Does the newest reference answer the contact event at ``event_ns`` entering ``domain``: that
+    domain's, starting at the event's step or later (one step's rounding allowed)?"""
+    return plan_in_force is not None and plan_in_force[1] == domain and plan_in_force[2] >= event_ns - dt_ns
+
+
 def stamp_to_ns(stamp):
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 

@@ -24,11 +24,11 @@ import numpy as np
 import rclpy
 from flip_msgs.msg import ContactEvent, FlipReference, MotorCommand
 from flip_transport import _rcl_io
-from flip_transport.lockstep import (LATCHED_QOS, STREAM_QOS, MessageReader, RawMessage,
+from flip_transport.lockstep import (LATCHED_QOS, PLANNER_HOLD_TIMEOUT_S, STREAM_QOS, MessageReader, RawMessage,
                                      SubscriptionSet, cpu_per_step_line, joint_state_layout,
                                      motor_command_layout, odometry_layout,
-                                     pin_to_lockstep_cpu, read_stamp_ns, scheduling_note,
-                                     stamp_to_ns)
+                                     holds_for_reference, pin_to_lockstep_cpu, read_stamp_ns,
+                                     reference_answers, scheduling_note, stamp_to_ns)
 from flip_transport.node_stop import run_until_stopped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
@@ -40,9 +40,8 @@ from .dynamics import MOTOR_NAMES
 from .reference import SampledReference
 
 DT_NS = 500_000
-#: longest wall time the node holds a contact event's step for the planner's reference (the
-#: simulator's PLANNER_HOLD_TIMEOUT_S)
-REFERENCE_HOLD_TIMEOUT_S = 30.0
+#: longest wall time the node holds a contact event's step for the planner's reference (the simulator's)
+REFERENCE_HOLD_TIMEOUT_S = PLANNER_HOLD_TIMEOUT_S
 #: topics that wake the node: all but /odom, which comes before /joint_states
 WAKE_TOPICS = ('/joint_states', '/contact_events', '/fslip/reference', '/robot_description_mjcf')
 #: the topics besides the state's (taken with rclpy also when rcl's C API waits: _rcl_io.StateWait)
@@ -110,9 +109,8 @@ class TscNode:
     def _await_reference(self, msg):
         """A LIFT_OFF / TOUCH_DOWN while a flip plan is in force: its step waits for the planner's
         reference of the domain entered (sim_node's hold at the same event)."""
-        plan = self.plan_in_force
         if (self.hold_for_reference and msg.event in (ContactEvent.LIFT_OFF, ContactEvent.TOUCH_DOWN)
-                and plan is not None and plan[1] != FlipReference.DOMAIN_STANDING):
+                and holds_for_reference(self.plan_in_force)):
             self.awaited = (msg.domain, stamp_to_ns(msg.header.stamp), time.monotonic())
 
     def _reference_missing(self, k_ns) -> bool:
@@ -121,8 +119,7 @@ class TscNode:
         if self.awaited is None or k_ns < self.awaited[1]:
             return False
         domain, event_ns, t0 = self.awaited
-        plan = self.plan_in_force
-        if plan is not None and plan[1] == domain and plan[2] >= event_ns - DT_NS:
+        if reference_answers(self.plan_in_force, domain, event_ns, DT_NS):
             self.awaited = None
             return False
         if time.monotonic() - t0 > REFERENCE_HOLD_TIMEOUT_S:
