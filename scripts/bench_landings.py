@@ -92,9 +92,12 @@ def one(kind: str, start: float, seconds: float, controller: str, scale: float, 
     # the flywheel's peak speed (rpm) in the flight and in the landing (issue 22: the landing's at most the flight's)
     out["fw_peak_rpm"] = None
     if td is not None:
-        # over the same spans as summary.json's flight_/landing_peak_flywheel_rpm
-        w = np.asarray(r["fw"]) * RPM_PER_RADPS
-        out["fw_peak_rpm"] = (peak_abs(r["t"], w, lo, td), peak_abs(r["t"], w, td, float(r["t"][-1])))
+        # over the same spans as summary.json's flight_/landing_peak_flywheel_rpm, from every step (as the
+        # bag's /joint_states), not the log's samples: a flywheel still spinning up at the touch-down peaks
+        # between them
+        w = np.asarray(r["fw_step"]) * RPM_PER_RADPS
+        ts = r["t_step"]
+        out["fw_peak_rpm"] = (peak_abs(ts, w, lo, td), peak_abs(ts, w, td, float(ts[-1])))
     out["at_rest"] = at_rest(r["t"], r["speed"], r["ang_speed"])
     # the stance the run ends in (the next flip's, in a row): left foot ahead of the right, feet yaw apart
     out["feet_apart"] = feet_apart(sim)

@@ -129,6 +129,17 @@ def test_backflip_legs_preplaced_touch_down_where_the_plan_puts_the_feet(backfli
         assert lean < 0.0
 
 
+def test_the_backflips_landing_spins_the_flywheel_no_faster_than_its_flight(backflip):
+    """From this start the backflip touches down with its COM behind the feet and its landing plan grows
+    the momentum (the feet's vertical force acts ahead of the COM); tracked, that went into the flywheel,
+    3,660 rpm against 3,641 in the flight.  Under ``landing_flywheel_speed_cap`` the landing's flywheel
+    stays at its touch-down speed or below (the rest goes into the body's pitch), and so below the
+    flight's peak; the robot lands and stands (test_backflip_lands_and_stands)."""
+    lean, fw_flight, fw_landing = _touch_down_lean_and_flywheel_peaks(backflip)
+    assert lean < 0.0
+    assert fw_landing <= fw_flight, (fw_landing, fw_flight)
+
+
 def test_the_landing_lets_go_of_the_flights_flywheel_torque(backflip):
     """The flight ends braking the body with the flywheel (~-170 N*m); under the tracked landing
     plan the QP smooths its torque at a tenth of the legs' (``flywheel_smoothing``), so that it stops within a
@@ -340,7 +351,8 @@ def test_a_raised_ground_frontflip_that_rebounds_tracks_the_re_solve_of_its_next
     """Flip D (ground 0.1 m higher than the planner is told, 0.6 m forward, apex 1.2 m) with read noise
     seeded as scripts/bench_landings.py --noise 1e-4 seeds its 1.3 s start: the feet leave the ground
     again under the tracked landing plan (a rebound: with the plan's momentum scaled to what the impact
-    left, ``landing_impact_time``, none of the 30 start times rebounds, so the case is made with that
+    left, ``landing_impact_time``, or the landing's flywheel held at its touch-down speed,
+    ``landing_flywheel_speed_cap``, none of the 30 start times rebounds, so the case is made with both
     off, as 1 of 30 did then).  The plan goes on,
     the planner re-solves the next touch-down from its measured state and the controller tracks that
     (paper §III-C): the own landing never runs, and the robot lands and stands.  (Flip C's 0.4 s start
@@ -350,7 +362,7 @@ def test_a_raised_ground_frontflip_that_rebounds_tracks_the_re_solve_of_its_next
     from flip_tools.perturb import read_noise
     sim = Simulator(scenario=Scenario.raised_landing(0.1), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE)
     ctl = Controller(export_mjcf(sim.flywheel), motor_speed_scale=SCALE, flywheel_torque=FLYWHEEL_TORQUE,
-                     landing_impact_time=0.0)
+                     landing_impact_time=0.0, landing_flywheel_speed_cap=False)
     z_stand = float(sim.standing_qpos[2]) + 0.1            # on the raised landing area
     plant = read_noise(sim, 1e-4, round(1.3 * 1e4), 1.3)
     r = of.run("frontflip", seconds=10.3, start=1.3, sim=sim, controller=ctl, every=10, plant=plant,
@@ -490,7 +502,8 @@ def test_the_backflips_landing_plan_is_scaled_to_what_the_impact_left(backflip):
     """The touch-down's impact takes part of the momentum out before the plan (solved from the
     pre-impact state) is tracked; 10 ms after it the plan's momentum is scaled to what is left
     (``landing_impact_time``), by less than 1 here, and the landing's flywheel then peaks within 2 % of
-    its flight peak (measured 3,660 against 3,641 rpm; 3,901 without the scaling)."""
+    its flight peak (measured 3,660 against 3,641 rpm with ``landing_flywheel_speed_cap`` off, 3,621 with it;
+    3,901 without the scaling)."""
     k = backflip["ctl"].landing.impact[1]
     assert 0.8 < k < 1.0, k
     _, fw_flight, fw_landing = _touch_down_lean_and_flywheel_peaks(backflip)

@@ -76,3 +76,22 @@ def test_planner_rows_stay_inside_the_envelope():
     assert planning_fraction(0.0) == 1.0 and planning_fraction(1.0) == 0.0
     assert planning_fraction(0.5) == 0.5                       # driving: the chord, half the envelope
     assert planning_fraction(-0.75) == pytest.approx(0.5)      # braking: the envelope itself
+
+
+def test_speed_capped_bounds_the_torque_along_the_speed_to_what_reaches_the_cap_in_a_tick():
+    """limits.speed_capped (the LANDING's flywheel cap): the torque along the speed is at most
+    I (w_cap - |w|) / dt, a brake above the cap, never past the other bound; the torque against the
+    speed, the other motors and the inputs stay as they were; a negative speed mirrors it."""
+    from tsc_controller.limits import speed_capped
+    lb, ub = np.full(3, -100.0), np.full(3, 100.0)
+    I, dt = 0.1, 5e-4
+    for w, expect_lb, expect_ub in ((300.0, -100.0, 100.0),      # 1 rad/s below: 200 N m would reach it
+                                    (300.8, -100.0, 40.0),       # 0.2 below: 40
+                                    (301.0, -100.0, 0.0),        # at the cap: nothing along the speed
+                                    (301.1, -100.0, -20.0),      # 0.1 above: a 20 N m brake
+                                    (310.0, -100.0, -100.0),     # far above: the full brake, not past it
+                                    (-300.8, -40.0, 100.0), (-301.1, 20.0, 100.0)):
+        lo, up = speed_capped(lb, ub, 2, w, 301.0, I, dt)
+        assert (lo[2], up[2]) == pytest.approx((expect_lb, expect_ub)), w
+        assert lo[:2].tolist() == [-100.0, -100.0] and up[:2].tolist() == [100.0, 100.0]
+    assert lb.tolist() == [-100.0] * 3 and ub.tolist() == [100.0] * 3

@@ -171,6 +171,7 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
     if x_start is not None:
         plan()
     log = dict(t=[], z=[], x=[], pitch=[], H=[], dom=[], fw=[], axis_tilt=[], speed=[], ang_speed=[], events=[],
+               t_step=[], fw_step=[],
                references=[], event_states=[], fell=None)
     fw_dof = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
     while sim.time < seconds:
@@ -194,6 +195,8 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
         if plant is not None:
             u = plant.command(sim, u)
         sim.step(u)
+        log["t_step"].append(sim.time)                  # the flywheel at every step: its peaks (issue 22)
+        log["fw_step"].append(sim.data.qvel[fw_dof])
         if sim.step_index % every == 0:
             _log_sample(log, sim, ctl, info, fw_dof)
         if sim.body_contacts():

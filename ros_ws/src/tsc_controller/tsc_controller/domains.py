@@ -60,7 +60,7 @@ from .flight import MOTOR_HELD_POST_T1, MOTOR_HELD_PRE_T1, Flight  # noqa: F401
 from .ground_targets import GroundTargets
 from .jumping import Jumping
 from .landing import Landing
-from .limits import TorqueLimits
+from .limits import TorqueLimits, speed_capped
 from .reference import Domain, SampledReference
 from .standing import Standing
 from .state import StateConverter
@@ -113,6 +113,11 @@ class Controller:
         self._pitch_raw = None
         self._heading = None             # the pelvis's heading and position at the jump's start (_heading_frame)
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
+        #: the flywheel's speed (rad/s) at the touch-down the LANDING under way began with, "armed" until
+        #: its first tick reads it, None outside a LANDING (``landing_flywheel_speed_cap``)
+        self.flywheel_cap = None
+        self._t_last = None              # the last tick's time: the tick period of the speed cap
+        self._dt = 5e-4
         #: JUMPING references not started, (plan id, its start time, t when it was dropped): one that
         #: came after its start + max_late, or while the robot was not standing until then
         self.dropped: list[tuple[int, float, float]] = []
@@ -153,6 +158,10 @@ class Controller:
             self.landing_plan = None
         if domain == Domain.LANDING:
             self._landing_tracked = False
+            if self.domain == Domain.FLIGHT:         # a touch-down (a rebound stays in LANDING, not here)
+                self.flywheel_cap = "armed"
+        else:
+            self.flywheel_cap = None
         self._rebound_in_air = False
         self.domain = Domain(domain)
         self.t_enter = t
@@ -281,6 +290,22 @@ class Controller:
             out[self.dyn.motor_names.index("flywheel")] = share
         return out
 
+    def _landing_flywheel_cap(self, lb, ub, v, t):
+        """The torque bounds with, in a LANDING under the tracked plan after a somersault, the flywheel
+        held at or below its touch-down speed (``landing_flywheel_speed_cap``, limits.speed_capped)."""
+        if self._t_last is not None and t > self._t_last:
+            self._dt = t - self._t_last
+        self._t_last = t
+        if self.flywheel_cap is None or self.dyn.flywheel_v is None:
+            return lb, ub
+        w = float(v[self.dyn.flywheel_v])
+        if self.flywheel_cap == "armed":                  # the landing's first tick: the touch-down's speed
+            self.flywheel_cap = abs(w)
+        if not self.cfg.landing_flywheel_speed_cap or not self._somersault or self.refs.get(Domain.LANDING) is None:
+            return lb, ub
+        return speed_capped(lb, ub, self.dyn.motor_names.index("flywheel"), w, self.flywheel_cap,
+                            self.flight.o_Hfw.rotor_inertia(self.dyn), self._dt)
+
     def compute(self, q, v, t, details: bool = True):
         """One TSC tick: returns (u (11,), info dict).  ``details=False`` leaves the predicted forces,
         ground reaction and output errors out of ``info`` (the same u)."""
@@ -308,7 +333,7 @@ class Controller:
         feet = (True, True)
         if ground:
             outs, des, feet = self.ground.swing(outs, des)
-        lb, ub = self.limits.bounds(v[self.dyn.motor_v])
+        lb, ub = self._landing_flywheel_cap(*self.limits.bounds(v[self.dyn.motor_v]), v, t)
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
             res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,

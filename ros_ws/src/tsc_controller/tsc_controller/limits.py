@@ -2,6 +2,8 @@
 
 * Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) of ``cassie_model.motor_limits.MotorLimits``
   (the simulator's own envelope; the flywheel has a constant 195 N·m, or ``flywheel_torque``).
+* A speed cap (the LANDING's flywheel, :func:`speed_capped`): the torque along a motor's speed bounded
+  by I (w_cap - |w|) / dt, what brings |w| to w_cap in one tick.
 * GRF: C_v F_v <= c_v, with F_v in the contact basis of :meth:`Dynamics.contact_constraints`
   (per foot: toe (f_d, f_t, f_n), heel (f_t, f_n)):  f_n >= f_min at toe and heel (unilateral and
   centre of pressure inside the foot), |f_t| <= mu f_n at each point, and the foot's along-foot
@@ -45,6 +47,19 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_ma
         rows += [row([(td, 1.0), (tn, -mu), (hn, -mu)]), row([(td, -1.0), (tn, -mu), (hn, -mu)])]
         rhs += [0.0, 0.0]
     return np.array(rows), np.array(rhs)
+
+
+def speed_capped(lb, ub, i: int, w: float, w_cap: float, inertia: float, dt: float):
+    """(lb, ub) with motor i's torque along its speed w bounded by inertia (w_cap - |w|) / dt: the torque
+    that takes |w| to ``w_cap`` in one tick of ``dt`` (a rotor of that inertia, the body's motion left
+    out); above the cap a brake.  Kept within the other bound (copies; the inputs are not changed)."""
+    lb, ub = np.array(lb, float), np.array(ub, float)
+    a = inertia * (w_cap - abs(w)) / dt
+    if w >= 0.0:
+        ub[i] = max(min(ub[i], a), lb[i])
+    else:
+        lb[i] = min(max(lb[i], -a), ub[i])
+    return lb, ub
 
 
 class TorqueLimits:
