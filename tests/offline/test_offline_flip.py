@@ -133,11 +133,15 @@ def test_the_backflips_landing_spins_the_flywheel_no_faster_than_its_flight(back
     """From this start the backflip touches down with its COM behind the feet and its landing plan grows
     the momentum (the feet's vertical force acts ahead of the COM); tracked, that went into the flywheel,
     3,660 rpm against 3,641 in the flight.  Under ``landing_flywheel_speed_cap`` the landing's flywheel
-    stays at its touch-down speed or below (the rest goes into the body's pitch), and so below the
-    flight's peak; the robot lands and stands (test_backflip_lands_and_stands)."""
-    lean, fw_flight, fw_landing = _touch_down_lean_and_flywheel_peaks(backflip)
+    rides at the flight's peak (the rest goes into the body's pitch), over it by no more than the cap's
+    one-tick prediction errs, 0.01 rad/s here (measured 0.0033; 2 rad/s over without the cap); the robot
+    lands and stands (test_backflip_lands_and_stands)."""
+    lean = _touch_down_lean_and_flywheel_peaks(backflip)[0]
     assert lean < 0.0
-    assert fw_landing <= fw_flight, (fw_landing, fw_flight)
+    lo, td = of.lift_off_touch_down(backflip["events"])
+    t, fw = np.asarray(backflip["t_step"]), np.abs(np.asarray(backflip["fw_step"]))   # every step
+    fw_flight, fw_landing = fw[(t >= lo) & (t <= td)].max(), fw[t >= td].max()
+    assert fw_landing <= fw_flight + 0.01, (fw_landing, fw_flight)
 
 
 def test_the_landing_lets_go_of_the_flights_flywheel_torque(backflip):
@@ -351,7 +355,7 @@ def test_a_raised_ground_frontflip_that_rebounds_tracks_the_re_solve_of_its_next
     """Flip D (ground 0.1 m higher than the planner is told, 0.6 m forward, apex 1.2 m) with read noise
     seeded as scripts/bench_landings.py --noise 1e-4 seeds its 1.3 s start: the feet leave the ground
     again under the tracked landing plan (a rebound: with the plan's momentum scaled to what the impact
-    left, ``landing_impact_time``, or the landing's flywheel held at its touch-down speed,
+    left, ``landing_impact_time``, or the landing's flywheel held at its flight's peak speed,
     ``landing_flywheel_speed_cap``, none of the 30 start times rebounds, so the case is made with both
     off, as 1 of 30 did then).  The plan goes on,
     the planner re-solves the next touch-down from its measured state and the controller tracks that

@@ -95,3 +95,7 @@ def test_speed_capped_bounds_the_torque_along_the_speed_to_what_reaches_the_cap_
         assert (lo[2], up[2]) == pytest.approx((expect_lb, expect_ub)), w
         assert lo[:2].tolist() == [-100.0, -100.0] and up[:2].tolist() == [100.0, 100.0]
     assert lb.tolist() == [-100.0] * 3 and ub.tolist() == [100.0] * 3
+    # the body's motion carrying the joint speed 0.1 rad/s further from 0 over the tick: 0.1 less room
+    assert speed_capped(lb, ub, 2, 300.8, 301.0, I, dt, drift=0.1)[1][2] == pytest.approx(20.0)
+    assert speed_capped(lb, ub, 2, -300.8, 301.0, I, dt, drift=-0.1)[0][2] == pytest.approx(-20.0)
+    assert speed_capped(lb, ub, 2, -300.8, 301.0, I, dt, drift=0.1)[0][2] == pytest.approx(-60.0)

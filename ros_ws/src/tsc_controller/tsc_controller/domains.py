@@ -113,9 +113,12 @@ class Controller:
         self._pitch_raw = None
         self._heading = None             # the pelvis's heading and position at the jump's start (_heading_frame)
         self.fallen = False              # a BODY_CONTACT was reported: damping only, from then on
-        #: the flywheel's speed (rad/s) at the touch-down the LANDING under way began with, "armed" until
-        #: its first tick reads it, None outside a LANDING (``landing_flywheel_speed_cap``)
+        #: the flywheel speed (rad/s) the LANDING under way may not exceed: the flight's peak, or the
+        #: touch-down's if higher; "armed" until the landing's first tick reads it, None outside a LANDING
+        #: (``landing_flywheel_speed_cap``)
         self.flywheel_cap = None
+        self._flight_peak = 0.0          # the flywheel's peak |speed| over the FLIGHT under way or last
+        self._pelvis_axis_rate = None    # the last tick's pelvis rate about the wheel axis (rad/s)
         self._t_last = None              # the last tick's time: the tick period of the speed cap
         self._dt = 5e-4
         #: JUMPING references not started, (plan id, its start time, t when it was dropped): one that
@@ -162,6 +165,8 @@ class Controller:
                 self.flywheel_cap = "armed"
         else:
             self.flywheel_cap = None
+        if domain == Domain.FLIGHT:
+            self._flight_peak = 0.0
         self._rebound_in_air = False
         self.domain = Domain(domain)
         self.t_enter = t
@@ -292,19 +297,28 @@ class Controller:
 
     def _landing_flywheel_cap(self, lb, ub, v, t):
         """The torque bounds with, in a LANDING under the tracked plan after a somersault, the flywheel
-        held at or below its touch-down speed (``landing_flywheel_speed_cap``, limits.speed_capped)."""
+        held at or below its flight's peak speed (``landing_flywheel_speed_cap``, limits.speed_capped)."""
         if self._t_last is not None and t > self._t_last:
             self._dt = t - self._t_last
         self._t_last = t
-        if self.flywheel_cap is None or self.dyn.flywheel_v is None:
+        if self.dyn.flywheel_v is None:
             return lb, ub
         w = float(v[self.dyn.flywheel_v])
-        if self.flywheel_cap == "armed":                  # the landing's first tick: the touch-down's speed
-            self.flywheel_cap = abs(w)
+        o = self.flight.o_Hfw
+        p, p_last = o.pelvis_axis_rate(self.dyn, v), self._pelvis_axis_rate
+        self._pelvis_axis_rate = p
+        if self.domain == Domain.FLIGHT:
+            self._flight_peak = max(self._flight_peak, abs(w))
+        if self.flywheel_cap is None:
+            return lb, ub
+        if self.flywheel_cap == "armed":                  # the landing's first tick
+            self.flywheel_cap = max(self._flight_peak, abs(w))
         if not self.cfg.landing_flywheel_speed_cap or not self._somersault or self.refs.get(Domain.LANDING) is None:
             return lb, ub
+        # the joint speed is the wheel's spin less the pelvis's rate: the pelvis's last change, expected again
+        drift = -(p - p_last) if p_last is not None else 0.0
         return speed_capped(lb, ub, self.dyn.motor_names.index("flywheel"), w, self.flywheel_cap,
-                            self.flight.o_Hfw.rotor_inertia(self.dyn), self._dt)
+                            o.rotor_inertia(self.dyn), self._dt, drift)
 
     def compute(self, q, v, t, details: bool = True):
         """One TSC tick: returns (u (11,), info dict).  ``details=False`` leaves the predicted forces,

@@ -49,12 +49,13 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_ma
     return np.array(rows), np.array(rhs)
 
 
-def speed_capped(lb, ub, i: int, w: float, w_cap: float, inertia: float, dt: float):
-    """(lb, ub) with motor i's torque along its speed w bounded by inertia (w_cap - |w|) / dt: the torque
-    that takes |w| to ``w_cap`` in one tick of ``dt`` (a rotor of that inertia, the body's motion left
-    out); above the cap a brake.  Kept within the other bound (copies; the inputs are not changed)."""
+def speed_capped(lb, ub, i: int, w: float, w_cap: float, inertia: float, dt: float, drift: float = 0.0):
+    """(lb, ub) with motor i's torque along its speed w bounded by inertia (w_cap - |w| - sign(w) drift)
+    / dt: the torque that takes |w| to ``w_cap`` in one tick of ``dt`` (a rotor of that inertia on a body
+    whose motion changes the joint speed by ``drift`` over the tick); above the cap a brake.  Kept within
+    the other bound (copies; the inputs are not changed)."""
     lb, ub = np.array(lb, float), np.array(ub, float)
-    a = inertia * (w_cap - abs(w)) / dt
+    a = inertia * (w_cap - abs(w) - (drift if w >= 0.0 else -drift)) / dt
     if w >= 0.0:
         ub[i] = max(min(ub[i], a), lb[i])
     else:

@@ -128,6 +128,14 @@ class FlywheelMomentum(Output):
             self._setup(dyn)
         return self._I
 
+    def pelvis_axis_rate(self, dyn, v) -> float:
+        """The pelvis's angular velocity about the wheel's axis (rad/s): the joint speed is the wheel's
+        own spin less this."""
+        if not hasattr(self, "_I"):
+            self._setup(dyn)
+        b = self._base_v
+        return float(self._a @ np.asarray(v, float)[b + 3:b + 6])
+
     def native_spec(self, dyn):
         if not hasattr(self, "_I"):
             self._setup(dyn)
