@@ -108,6 +108,8 @@ class Controller:
         self._pending_event = None
         self.u_prev = np.zeros(self.dyn.nu)
         self._du_shares: dict = {}       # flywheel_smoothing share -> per-motor shares (_du_share)
+        #: the flywheel motor's index in u (None: a robot without one)
+        self._fw_motor = self.dyn.motor_names.index("flywheel") if "flywheel" in self.dyn.motor_names else None
         self.ticks = 0
         self.pitch = 0.0                 # unwrapped sagittal pelvis pitch, rad (see _update_pitch)
         self._pitch_raw = None
@@ -287,12 +289,12 @@ class Controller:
         """Per-motor share of the torque smoothing (``flywheel_smoothing``, while this domain tracks a
         planner reference), None: all 1."""
         share = self.cfg.flywheel_smoothing.get(int(self.domain))
-        if share is None or self.refs.get(self.domain) is None or "flywheel" not in self.dyn.motor_names:
+        if share is None or self.refs.get(self.domain) is None or self._fw_motor is None:
             return None
         out = self._du_shares.get(share)          # built once per share value, not every tick
         if out is None:
             out = self._du_shares[share] = np.ones(self.dyn.nu)
-            out[self.dyn.motor_names.index("flywheel")] = share
+            out[self._fw_motor] = share
         return out
 
     def _landing_flywheel_cap(self, lb, ub, v, t):
@@ -301,7 +303,7 @@ class Controller:
         if self._t_last is not None and t > self._t_last:
             self._dt = t - self._t_last
         self._t_last = t
-        if self.dyn.flywheel_v is None:
+        if self.dyn.flywheel_v is None or self._fw_motor is None:
             return lb, ub
         w = float(v[self.dyn.flywheel_v])
         o = self.flight.o_Hfw
@@ -317,7 +319,7 @@ class Controller:
             return lb, ub
         # the joint speed is the wheel's spin less the pelvis's rate: the pelvis's last change, expected again
         drift = -(p - p_last) if p_last is not None else 0.0
-        return speed_capped(lb, ub, self.dyn.motor_names.index("flywheel"), w, self.flywheel_cap,
+        return speed_capped(lb, ub, self._fw_motor, w, self.flywheel_cap,
                             o.rotor_inertia(self.dyn), self._dt, drift)
 
     def compute(self, q, v, t, details: bool = True):
