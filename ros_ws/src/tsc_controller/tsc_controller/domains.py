@@ -303,8 +303,8 @@ class Controller:
         if self._t_last is not None and t > self._t_last:
             self._dt = t - self._t_last
         self._t_last = t
-        if self.dyn.flywheel_v is None or self._fw_motor is None:
-            return lb, ub
+        if self.domain not in (Domain.FLIGHT, Domain.LANDING) or self.dyn.flywheel_v is None or self._fw_motor is None:
+            return lb, ub                                 # (a LANDING is entered from a FLIGHT only)
         w = float(v[self.dyn.flywheel_v])
         o = self.flight.o_Hfw
         p, p_last = o.pelvis_axis_rate(self.dyn, v), self._pelvis_axis_rate
