@@ -133,16 +133,17 @@ def test_the_backflips_landing_spins_the_flywheel_no_faster_than_its_flight(back
     """From this start the backflip touches down with its COM behind the feet and its landing plan grows
     the momentum (the feet's vertical force acts ahead of the COM); tracked, that went into the flywheel,
     3,660 rpm against 3,641 in the flight.  Under ``landing_flywheel_speed_cap`` the landing's flywheel
-    rides at the flight's peak (the rest goes into the body's pitch), over it by no more than the cap's
-    one-tick prediction errs, 0.01 rad/s here (measured 0.0033; 2 rad/s over without the cap); the robot
-    lands and stands (test_backflip_lands_and_stands)."""
+    is held just under the flight's peak (the rest goes into the body's pitch): at most the flight's peak,
+    every step (measured 0.0041 rad/s under; 2 rad/s over without the cap, 0.0033 over with the first
+    cap's prediction from the flywheel's torque alone); the robot lands and stands
+    (test_backflip_lands_and_stands)."""
     lean = _touch_down_lean_and_flywheel_peaks(backflip)[0]
     assert lean < 0.0
     from flip_tools.tracking import peak_abs
     lo, td = of.lift_off_touch_down(backflip["events"])
     t, fw = backflip["t_step"], backflip["fw_step"]                      # every step, as bench_landings
     fw_flight, fw_landing = peak_abs(t, fw, lo, td), peak_abs(t, fw, td, float(t[-1]))
-    assert fw_landing <= fw_flight + 0.01, (fw_landing, fw_flight)
+    assert fw_landing <= fw_flight, (fw_landing, fw_flight)
 
 
 def test_the_landing_lets_go_of_the_flights_flywheel_torque(backflip):

@@ -78,24 +78,22 @@ def test_planner_rows_stay_inside_the_envelope():
     assert planning_fraction(-0.75) == pytest.approx(0.5)      # braking: the envelope itself
 
 
-def test_speed_capped_bounds_the_torque_along_the_speed_to_what_reaches_the_cap_in_a_tick():
-    """limits.speed_capped (the LANDING's flywheel cap): the torque along the speed is at most
-    I (w_cap - |w|) / dt, a brake above the cap, never past the other bound; the torque against the
-    speed, the other motors and the inputs stay as they were; a negative speed mirrors it."""
-    from tsc_controller.limits import speed_capped
+def test_speed_cap_row_keeps_the_predicted_speed_within_the_cap():
+    """limits.speed_cap_row (the LANDING's flywheel cap): row.u <= upper says the speed predicted for the
+    next tick, w + drift + dt m.u, is at most the cap in magnitude: a torque on the row's bound lands on
+    the cap exactly, from below (room to spin up) or above (a brake), for either sign of the speed and with
+    a drift; beyond what the torque bounds can brake, the bound is the most brake there is."""
+    from tsc_controller.limits import speed_cap_row
+    m = np.array([0.5, -0.2, 10.0])                  # the legs' reaction and the wheel's own response
     lb, ub = np.full(3, -100.0), np.full(3, 100.0)
-    I, dt = 0.1, 5e-4
-    for w, expect_lb, expect_ub in ((300.0, -100.0, 100.0),      # 1 rad/s below: 200 N m would reach it
-                                    (300.8, -100.0, 40.0),       # 0.2 below: 40
-                                    (301.0, -100.0, 0.0),        # at the cap: nothing along the speed
-                                    (301.1, -100.0, -20.0),      # 0.1 above: a 20 N m brake
-                                    (310.0, -100.0, -100.0),     # far above: the full brake, not past it
-                                    (-300.8, -40.0, 100.0), (-301.1, 20.0, 100.0)):
-        lo, up = speed_capped(lb, ub, 2, w, 301.0, I, dt)
-        assert (lo[2], up[2]) == pytest.approx((expect_lb, expect_ub)), w
-        assert lo[:2].tolist() == [-100.0, -100.0] and up[:2].tolist() == [100.0, 100.0]
-    assert lb.tolist() == [-100.0] * 3 and ub.tolist() == [100.0] * 3
-    # the body's motion carrying the joint speed 0.1 rad/s further from 0 over the tick: 0.1 less room
-    assert speed_capped(lb, ub, 2, 300.8, 301.0, I, dt, drift=0.1)[1][2] == pytest.approx(20.0)
-    assert speed_capped(lb, ub, 2, -300.8, 301.0, I, dt, drift=-0.1)[0][2] == pytest.approx(-20.0)
-    assert speed_capped(lb, ub, 2, -300.8, 301.0, I, dt, drift=0.1)[0][2] == pytest.approx(-60.0)
+    dt = 5e-4
+    for w, drift in ((300.0, 0.0), (300.8, 0.0), (301.1, 0.0), (300.8, 0.1), (-300.8, 0.0), (-301.1, -0.1),
+                     (-300.8, 0.1)):
+        row, up = speed_cap_row(m, w, 301.0, dt, drift, lb, ub)
+        u = np.array([10.0, -30.0, 0.0])
+        u[2] = (up - row[:2] @ u[:2]) / row[2]      # the wheel's torque that puts row.u on its bound
+        assert abs(w + drift + dt * m @ u) == pytest.approx(301.0), (w, drift)
+        brake = abs(w + drift + dt * m[:2] @ u[:2]) > 301.0
+        assert (np.sign(u[2]) == -np.sign(w)) == brake, (w, drift, u)
+    row, up = speed_cap_row(m, 350.0, 301.0, dt, 0.0, lb, ub)   # 49 rad/s over: more than 100 N m can brake
+    assert up == pytest.approx(np.minimum(row * lb, row * ub).sum())

@@ -404,36 +404,80 @@ def test_the_tracked_landing_scales_its_momentum_to_what_the_impact_left():
     assert desired(object(), 0.02) == (-38.0, 20.0)                 # off
 
 
+class _LandingWheel:
+    """A controller through a somersault's FLIGHT into its LANDING under a tracked plan, fed flywheel
+    speeds that follow the cap's own model: each tick's speed is the last one plus ``drift`` plus
+    dt m.u, m the flywheel's row of M^-1 B, its response to the torques the controller sent (a still
+    pelvis otherwise)."""
+    dt = 0.0005
+
+    def __init__(self, case="somersault"):
+        self.sim = Simulator()
+        self.fw = self.sim.model.jnt_dofadr[self.sim.model.joint("flywheel").id]
+        self.ctl = Controller(export_mjcf(), track_hop_landing_reference=True,
+                              landing_flywheel_speed_cap=(case != "off"))
+        self.sc = StateConverter(self.ctl.dyn)
+        self.t, self.w, self.u = 0.0, -300.0, None
+        self.tick(self.w)
+        self.ctl._somersault = case != "hop"
+        self.ctl._enter(Domain.FLIGHT, self.t)
+
+    def tick(self, w):
+        self.sim.data.qvel[self.fw] = self.w = w
+        q, v = self.sc.from_simulator(self.sim)
+        self.u = self.ctl.compute(q, v, self.t)[0]
+        self.t += self.dt
+        return self.u
+
+    def next(self, drift):
+        """The speed the last tick's torques and ``drift`` make (the model's)."""
+        d = self.ctl.dyn
+        return self.w + drift + self.dt * float(d.Minv[d.flywheel_v, d.motor_v] @ self.u)
+
+    def land(self):
+        self.ctl._enter(Domain.LANDING, self.t)
+        ts = np.linspace(0.0, 1.0, 11)
+        self.ctl.set_reference(SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=self.t))
+
+
 @pytest.mark.parametrize("case", ["somersault", "off", "hop"])
 def test_a_somersaults_tracked_landing_holds_the_flywheel_at_its_flights_peak(case):
     """``landing_flywheel_speed_cap``: in the LANDING under the tracked plan after a somersault the
-    flywheel motor does not spin the flywheel past its flight's peak speed (302 rad/s here; the touch-down
-    came at 300): 0.2 rad/s above it, the next tick brakes it by at least I_fw 0.2 / dt.  Off, or after a
-    hop, the QP's torque is left alone."""
-    sim = Simulator()
-    fw = sim.model.jnt_dofadr[sim.model.joint("flywheel").id]
-    ctl = Controller(export_mjcf(), track_hop_landing_reference=True,
-                     landing_flywheel_speed_cap=(case != "off"))
-    sc = StateConverter(ctl.dyn)
-    ts = np.linspace(0.0, 1.0, 11)
-
-    def tick(t, w):
-        sim.data.qvel[fw] = w
-        q, v = sc.from_simulator(sim)
-        return ctl.compute(q, v, t)[0]
-    tick(0.0, -300.0)
-    ctl._somersault = case != "hop"
-    ctl._enter(Domain.FLIGHT, 0.0)
-    tick(0.0005, -302.0)                             # the flight's peak
-    ctl._enter(Domain.LANDING, 0.0005)               # a touch-down
-    ctl.set_reference(SampledReference(Domain.LANDING, ts, ["L"], np.full(11, 0.8), start_time=0.0005))
-    tick(0.001, -300.0)                              # its first tick sets the cap
-    u = tick(0.0015, -302.2)
-    I, i = ctl.flight.o_Hfw.rotor_inertia(ctl.dyn), ctl.dyn.motor_names.index("flywheel")
-    brake = I * 0.2 / 0.0005
-    assert ctl.domain == Domain.LANDING and ctl.refs.get(Domain.LANDING) is not None
+    flywheel motor does not spin the flywheel past its flight's peak speed (302 rad/s here): with the
+    body's motion speeding the wheel up by 0.3 rad/s a tick, from 301 the wheel is braked so that its next
+    speed is the peak (the model's speeds: no miss, no guard).  Off, or after a hop, the QP's torque is
+    left alone and the wheel goes past the peak."""
+    r = _LandingWheel(case)
+    r.tick(-302.0)                                   # the flight's peak
+    r.land()
+    r.tick(-301.0)                                   # its first tick sets the cap
+    assert r.ctl.flywheel_cap == pytest.approx(302.0) or case != "somersault"
+    for _ in range(6):
+        r.tick(r.next(-0.3))
+    after = abs(r.next(-0.3))
+    assert r.ctl.domain == Domain.LANDING and r.ctl.refs.get(Domain.LANDING) is not None
     if case == "somersault":
-        assert ctl.flywheel_cap == pytest.approx(302.0)
-        assert u[i] >= brake * (1.0 - 1e-9), (u[i], brake)
+        assert r.ctl.flywheel_cap_guard == pytest.approx(0.0, abs=1e-9)
+        assert after == pytest.approx(302.0, abs=1e-9)
     else:
-        assert u[i] < 0.5 * brake, (u[i], brake)
+        assert after > 302.1, after
+
+
+@pytest.mark.parametrize("miss", [0.5, -0.5])
+def test_the_landings_flywheel_cap_aims_below_its_peak_by_the_largest_miss_of_its_prediction(miss):
+    """``Controller.flywheel_cap_guard``: a tick whose flywheel comes out 0.5 rad/s faster than the last
+    tick's prediction lowers the cap's aim by 0.5: with that drift going on, the next speeds are braked
+    to 0.5 under the flight's peak (302).  A wheel slower than predicted leaves the aim at the peak."""
+    r = _LandingWheel()
+    r.tick(-302.0)
+    r.land()
+    r.tick(-301.0)
+    r.tick(r.next(-0.3))
+    r.tick(r.next(-0.3))
+    assert r.ctl.flywheel_cap_guard == pytest.approx(0.0, abs=1e-9)
+    r.tick(r.next(-0.3) - miss)                      # |w| off the prediction by ``miss``
+    assert r.ctl.flywheel_cap_guard == pytest.approx(max(miss, 0.0), abs=1e-9)
+    if miss > 0.0:
+        for _ in range(4):                           # the drift's change (the miss) goes on
+            r.tick(r.next(-0.3 - miss))
+        assert abs(r.next(-0.3 - miss)) == pytest.approx(302.0 - miss, abs=1e-9)

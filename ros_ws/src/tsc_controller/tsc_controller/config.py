@@ -186,13 +186,15 @@ class ControllerConfig:
     # pre-impact state; tracked as solved it put back what the impact took out (a backflip: -35.4 ->
     # -37.5 kg m^2/s within 40 ms, into the flywheel).  0: off (docs/tuning.md)
     landing_impact_time: float = 0.01
-    # LANDING under the tracked plan after a somersault: the flywheel motor spins the flywheel no faster
-    # than its flight's peak (limits.speed_capped: its torque along the speed at most I_fw (w_max - |w|)/dt,
-    # a brake above w_max).  The flight is what sizes the flywheel's speed (paper Table I, w_max); the
-    # landing takes the momentum out through the feet, and what the flywheel may not take goes into the
-    # body's pitch.  Without it a backflip touching down with its COM behind the feet followed its plan's
-    # growing momentum into the flywheel, up to 3 % past the flight's peak; capped at the touch-down's
-    # speed instead, the perturbed landings of `flip sweep` lost 41 of 225 (docs/tuning.md)
+    # LANDING under the tracked plan after a somersault: the flywheel no faster than its flight's peak
+    # w_max.  One QP row (limits.speed_cap_row) keeps the next tick's speed, predicted from this tick's
+    # torques and the last tick's drift, within w_max less the largest miss of that prediction in the
+    # landing so far (Controller.flywheel_cap_guard); above it a brake.  The flight is what sizes the
+    # flywheel's speed (paper Table I, w_max); the landing takes the momentum out through the feet, and what
+    # the flywheel may not take goes into the body's pitch.  Without it a backflip touching down with its
+    # COM behind the feet followed its plan's growing momentum into the flywheel, up to 3 % past the
+    # flight's peak; capped at the touch-down's speed instead, the perturbed landings of `flip sweep` lost
+    # 41 of 225 (docs/tuning.md)
     landing_flywheel_speed_cap: bool = True
     # LANDING after a hop (no turn, nothing to stop): the same choice.  Off: the hop's re-solve, planned
     # from the pre-impact sink rate, unloads the feet ~80 ms after the touch-down; with Cassie's

@@ -60,7 +60,7 @@ from .flight import MOTOR_HELD_POST_T1, MOTOR_HELD_PRE_T1, Flight  # noqa: F401
 from .ground_targets import GroundTargets
 from .jumping import Jumping
 from .landing import Landing
-from .limits import TorqueLimits, speed_capped
+from .limits import TorqueLimits, speed_cap_row
 from .reference import Domain, SampledReference
 from .standing import Standing
 from .state import StateConverter
@@ -119,8 +119,13 @@ class Controller:
         #: touch-down's if higher; "armed" until the landing's first tick reads it, None outside a LANDING
         #: (``landing_flywheel_speed_cap``)
         self.flywheel_cap = None
+        #: the largest one-tick miss of the cap's prediction toward a faster wheel in the LANDING under way
+        #: (rad/s; a foot rolling, a body motion the last tick's did not foresee): the cap aims that far
+        #: below ``flywheel_cap``, so that a miss no larger does not carry the wheel past it
+        self.flywheel_cap_guard = 0.0
+        self._cap_drift = None           # the last tick's drift of the cap's prediction (_landing_flywheel_cap)
         self._flight_peak = 0.0          # the flywheel's peak |speed| over the FLIGHT under way or last
-        self._pelvis_axis_rate = None    # the last tick's pelvis rate about the wheel axis (rad/s)
+        self._w_last = None              # the last FLIGHT or LANDING tick's flywheel speed (rad/s)
         self._t_last = None              # the last tick's time: the tick period of the speed cap
         self._dt = 5e-4
         #: JUMPING references not started, (plan id, its start time, t when it was dropped): one that
@@ -165,6 +170,7 @@ class Controller:
             self._landing_tracked = False
             if self.domain == Domain.FLIGHT:         # a touch-down (a rebound stays in LANDING, not here)
                 self.flywheel_cap = "armed"
+                self.flywheel_cap_guard, self._cap_drift = 0.0, None
         else:
             self.flywheel_cap = None
         if domain == Domain.FLIGHT:
@@ -298,29 +304,39 @@ class Controller:
         return out
 
     def _landing_flywheel_cap(self, lb, ub, v, t):
-        """The torque bounds with, in a LANDING under the tracked plan after a somersault, the flywheel
-        held at or below its flight's peak speed (``landing_flywheel_speed_cap``, limits.speed_capped)."""
+        """The QP's row (C_x, up_x) that, in a LANDING under the tracked plan after a somersault, holds the
+        flywheel at or below its flight's peak speed (``landing_flywheel_speed_cap``, limits.speed_cap_row);
+        None elsewhere.
+
+        The next tick's joint speed is predicted as w + drift + dt m.u: m = the flywheel's row of M^-1 B,
+        its response to every motor torque (the wheel's own and, by reaction on the body, the legs');
+        drift = the last tick's change of w less what its torques did (the body's motion, expected again)."""
         if self._t_last is not None and t > self._t_last:
             self._dt = t - self._t_last
         self._t_last = t
         if self.domain not in (Domain.FLIGHT, Domain.LANDING) or self.dyn.flywheel_v is None or self._fw_motor is None:
-            return lb, ub                                 # (a LANDING is entered from a FLIGHT only)
-        w = float(v[self.dyn.flywheel_v])
-        o = self.flight.o_Hfw
-        p, p_last = o.pelvis_axis_rate(self.dyn, v), self._pelvis_axis_rate
-        self._pelvis_axis_rate = p
+            self._w_last = None
+            return None                                   # (a LANDING is entered from a FLIGHT only)
+        i = self.dyn.flywheel_v
+        w, w_last = float(v[i]), self._w_last
+        self._w_last = w
         if self.domain == Domain.FLIGHT:
             self._flight_peak = max(self._flight_peak, abs(w))
         if self.flywheel_cap is None:
-            return lb, ub
-        if self.flywheel_cap == "armed":                  # the landing's first tick
+            return None
+        m = self.dyn.Minv[i, self.dyn.motor_v]
+        drift = (w - w_last) - self._dt * float(m @ self.u_prev) if w_last is not None else 0.0
+        if self.flywheel_cap == "armed":                  # the landing's first tick (its drift spans the impact)
             self.flywheel_cap = max(self._flight_peak, abs(w))
+            self._cap_drift = None
+        else:
+            if self._cap_drift is not None:               # the last prediction's miss: the drift's change
+                miss = drift - self._cap_drift
+                self.flywheel_cap_guard = max(self.flywheel_cap_guard, miss if w >= 0.0 else -miss)
+            self._cap_drift = drift
         if not self.cfg.landing_flywheel_speed_cap or not self._somersault or self.refs.get(Domain.LANDING) is None:
-            return lb, ub
-        # the joint speed is the wheel's spin less the pelvis's rate: the pelvis's last change, expected again
-        drift = -(p - p_last) if p_last is not None else 0.0
-        return speed_capped(lb, ub, self._fw_motor, w, self.flywheel_cap,
-                            o.rotor_inertia(self.dyn), self._dt, drift)
+            return None
+        return speed_cap_row(m, w, self.flywheel_cap - self.flywheel_cap_guard, self._dt, drift, lb, ub)
 
     def compute(self, q, v, t, details: bool = True):
         """One TSC tick: returns (u (11,), info dict).  ``details=False`` leaves the predicted forces,
@@ -349,12 +365,13 @@ class Controller:
         feet = (True, True)
         if ground:
             outs, des, feet = self.ground.swing(outs, des)
-        lb, ub = self._landing_flywheel_cap(*self.limits.bounds(v[self.dyn.motor_v]), v, t)
+        lb, ub = self.limits.bounds(v[self.dyn.motor_v])
+        cap = self._landing_flywheel_cap(lb, ub, v, t)
         try:
             w_du = self.cfg.torque_smoothing.get(int(self.domain), 0.0)
             res = self.tsc.solve(outs, des, ground, lb, ub, feet, self.u_prev, w_du,
                                  self.cfg.cop_margin_domains.get(int(self.domain)), details,
-                                 self.cfg.f_min_domains.get(int(self.domain)), self._du_share())
+                                 self.cfg.f_min_domains.get(int(self.domain)), self._du_share(), cap)
             u, status = res.u, res.status
         except np.linalg.LinAlgError as e:     # singular M or J M^-1 J^T: hold the previous command
             res, u, status = None, np.clip(self.u_prev, lb, ub), f"linalg_error: {e}"

@@ -2,8 +2,8 @@
 
 * Torque Limit: u_lb(qdot) <= u <= u_ub(qdot) of ``cassie_model.motor_limits.MotorLimits``
   (the simulator's own envelope; the flywheel has a constant 195 N·m, or ``flywheel_torque``).
-* A speed cap (the LANDING's flywheel, :func:`speed_capped`): the torque along a motor's speed bounded
-  by I (w_cap - |w|) / dt, what brings |w| to w_cap in one tick.
+* A speed cap (the LANDING's flywheel, :func:`speed_cap_row`): one row on all the motor torques that keeps a
+  joint's predicted speed at the next tick, w + drift + dt m.u, within w_cap.
 * GRF: C_v F_v <= c_v, with F_v in the contact basis of :meth:`Dynamics.contact_constraints`
   (per foot: toe (f_d, f_t, f_n), heel (f_t, f_n)):  f_n >= f_min at toe and heel (unilateral and
   centre of pressure inside the foot), |f_t| <= mu f_n at each point, and the foot's along-foot
@@ -49,18 +49,17 @@ def grf_constraints(n_feet: int = 2, mu: float = 0.6, f_min: float = 1.0, cop_ma
     return np.array(rows), np.array(rhs)
 
 
-def speed_capped(lb, ub, i: int, w: float, w_cap: float, inertia: float, dt: float, drift: float = 0.0):
-    """(lb, ub) with motor i's torque along its speed w bounded by inertia (w_cap - |w| - sign(w) drift)
-    / dt: the torque that takes |w| to ``w_cap`` in one tick of ``dt`` (a rotor of that inertia on a body
-    whose motion changes the joint speed by ``drift`` over the tick); above the cap a brake.  Kept within
-    the other bound (copies; the inputs are not changed)."""
-    lb, ub = np.array(lb, float), np.array(ub, float)
-    a = inertia * (w_cap - abs(w) - (drift if w >= 0.0 else -drift)) / dt
-    if w >= 0.0:
-        ub[i] = max(min(ub[i], a), lb[i])
-    else:
-        lb[i] = min(max(lb[i], -a), ub[i])
-    return lb, ub
+def speed_cap_row(m, w: float, w_cap: float, dt: float, drift: float, lb, ub):
+    """(row, upper) with row.u <= upper: a joint's speed at the next tick, predicted w + drift + dt m.u
+    (m: the joint's row of M^-1 B, its acceleration per motor torque), at most ``w_cap`` in magnitude
+    along its present sign; above the cap a brake.  ``upper`` is kept at or above the least row.u the
+    torque bounds (lb, ub) allow: beyond them the row asks for the most brake there is, and the QP stays
+    feasible."""
+    sgn = 1.0 if w >= 0.0 else -1.0
+    row = sgn * dt * np.asarray(m, float)
+    upper = w_cap - sgn * (w + drift)
+    least = float(np.minimum(row * np.asarray(lb, float), row * np.asarray(ub, float)).sum())
+    return row, max(upper, least)
 
 
 class TorqueLimits:

@@ -122,20 +122,6 @@ class FlywheelMomentum(Output):
         drift = I * (e[0] * (w1 * a2 - w2 * a1) + e[1] * (w2 * a0 - w0 * a2) + e[2] * (w0 * a1 - w1 * a0))
         return J @ dyn.v, J, np.array([drift]), None
 
-    def rotor_inertia(self, dyn) -> float:
-        """The flywheel's inertia about its spin axis (kg m^2)."""
-        if not hasattr(self, "_I"):
-            self._setup(dyn)
-        return self._I
-
-    def pelvis_axis_rate(self, dyn, v) -> float:
-        """The pelvis's angular velocity about the wheel's axis (rad/s): the joint speed is the wheel's
-        own spin less this."""
-        if not hasattr(self, "_I"):
-            self._setup(dyn)
-        b = self._base_v
-        return float(self._a @ np.asarray(v, float)[b + 3:b + 6])
-
     def native_spec(self, dyn):
         if not hasattr(self, "_I"):
             self._setup(dyn)

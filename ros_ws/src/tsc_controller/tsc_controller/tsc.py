@@ -361,11 +361,13 @@ class TSC:
 
     def solve(self, outputs, desired, ground: bool, u_lb, u_ub, feet=(True, True), u_prev=None,
               w_du: float = 0.0, cop_margin: float | None = None, details: bool = True,
-              f_min: float | None = None, du_share=None) -> QPResult:
+              f_min: float | None = None, du_share=None, rows=None) -> QPResult:
         """One QP: outputs (list of Output), desired (list of Desired, same order); ``feet`` (left,
         right): which feet are in contact on the ground (both by default); ``w_du`` > 0 adds
         w_du ||u - u_prev||^2 (torque smoothing), each motor's term times its ``du_share`` (None: all 1);
-        ``cop_margin`` and ``f_min`` override the constructor's.
+        ``cop_margin`` and ``f_min`` override the constructor's; ``rows`` = (C_x, up_x): more rows
+        C_x u <= up_x on the torques (the LANDING's flywheel cap, limits.speed_cap_row), kept when the GRF
+        rows are dropped.
         ``details=False`` (compiled task rows only): the same u, without the output errors (``y``)
         and the elimination's arrays (no ``forces``, ``qdd``) in the result."""
         dyn = self.dyn
@@ -406,11 +408,20 @@ class TSC:
             H = np.array(H, float)
             H.ravel()[::nu + 1] -= d
             g = np.asarray(g, float) + d * np.asarray(u_prev, float)
+        Cx = lox = upx = None
+        if rows is not None:
+            Cx, upx = np.atleast_2d(rows[0]), np.atleast_1d(rows[1])
+            lox = np.full(len(upx), -1e20)
+            if C is not None:
+                C, lo, up = np.vstack((C, Cx)), np.concatenate((lo, lox)), np.concatenate((up, upx))
+            else:
+                C, lo, up = Cx, lox, upx
         t0 = time.perf_counter()
         u, status, it = self._solver(0 if C is None else C.shape[0]).solve(H, g, C, lo, up, u_lb, u_ub)
         if status != "solved" or not math.isfinite(u @ u):
-            # infeasible GRF set (e.g. at lift-off): keep the torque limits, drop the GRF rows
-            u2, st2, it2 = self._solver(0).solve(H, g, None, None, None, u_lb, u_ub)
+            # infeasible GRF set (e.g. at lift-off): keep the torque limits (and ``rows``), drop the GRF rows
+            n_x = 0 if Cx is None else Cx.shape[0]
+            u2, st2, it2 = self._solver(n_x).solve(H, g, Cx, lox, upx, u_lb, u_ub)
             if st2 == "solved" and math.isfinite(u2 @ u2):
                 u, status, it = u2, status + "->box_only", it + it2
             else:
