@@ -142,6 +142,7 @@ def test_the_backflips_landing_spins_the_flywheel_no_faster_than_its_flight(back
     from flip_tools.tracking import peak_abs
     lo, td = of.lift_off_touch_down(backflip["events"])
     t, fw = backflip["t_step"], backflip["fw_step"]                      # every step, as bench_landings
+    assert np.any(t == td)                  # stamped as the events: the touch-down's sample in both windows
     fw_flight, fw_landing = peak_abs(t, fw, lo, td), peak_abs(t, fw, td, float(t[-1]))
     assert fw_landing <= fw_flight, (fw_landing, fw_flight)
 

@@ -463,6 +463,22 @@ def test_a_somersaults_tracked_landing_holds_the_flywheel_at_its_flights_peak(ca
         assert after > 302.1, after
 
 
+def test_a_touch_down_faster_than_the_flights_peak_is_held_at_its_speed():
+    """The cap is the landing's first speed when that is above the flight's peak (the state the flight's
+    last torque left, the touch-down's sample, which the flight's window counts too): the first tick's
+    torque holds the next speed there against the drift the impact tick brought."""
+    r = _LandingWheel()
+    r.tick(-302.0)                                   # the flight's peak, spinning up
+    u_flight = r.u.copy()
+    r.land()
+    r.tick(-302.5)                                   # the touch-down's tick, 0.5 past it
+    d = r.ctl.dyn
+    m = d.Minv[d.flywheel_v, d.motor_v]
+    drift = -0.5 - r.dt * float(m @ u_flight)        # that tick's change less what the flight's torques did
+    assert r.ctl.flywheel_cap == pytest.approx(302.5)
+    assert abs(r.next(drift)) == pytest.approx(302.5, abs=1e-9)
+
+
 @pytest.mark.parametrize("miss", [0.5, -0.5])
 def test_the_landings_flywheel_cap_aims_below_its_peak_by_the_largest_miss_of_its_prediction(miss):
     """``Controller.flywheel_cap_guard``: a tick whose flywheel comes out 0.5 rad/s faster than the last

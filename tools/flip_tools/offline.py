@@ -195,7 +195,9 @@ def run(kind="backflip", seconds=4.0, start=0.3, sim=None, controller=None, ever
         if plant is not None:
             u = plant.command(sim, u)
         sim.step(u)
-        log["t_step"].append(sim.time)                  # the flywheel at every step: its peaks (issue 22)
+        # the flywheel at every step, for its peaks (issue 22); stamped as the events are, so that the
+        # touch-down's sample is in both the flight's window and the landing's, as in summary.json
+        log["t_step"].append(stamp(sim))
         log["fw_step"].append(sim.data.qvel[fw_dof])
         if sim.step_index % every == 0:
             _log_sample(log, sim, ctl, info, fw_dof)
